@@ -1,0 +1,171 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "fnmpc/config/yaml_reader.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace fnmpc::config {
+
+namespace {
+std::string Where(const std::string& file, const YAML::Mark& mark) {
+  if (mark.is_null()) return file;
+  return file + ":" + std::to_string(mark.line + 1) + ":" + std::to_string(mark.column + 1);
+}
+
+YamlMap FromRoot(const YAML::Node& root, const std::string& name) {
+  if (!root.IsMap()) {
+    throw ConfigError(Where(name, root.Mark()) + ": expected a mapping at the top level");
+  }
+  return {root, name, ""};
+}
+}  // namespace
+
+YamlMap YamlMap::LoadFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError(path + ": cannot open file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return LoadString(ss.str(), path);
+}
+
+YamlMap YamlMap::LoadString(const std::string& text, const std::string& name) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(Where(name, e.mark) + ": YAML syntax error: " + e.msg);
+  }
+  return FromRoot(root, name);
+}
+
+YamlMap::YamlMap(YAML::Node node, std::string file, std::string prefix)
+    : node_(std::move(node)), file_(std::move(file)), prefix_(std::move(prefix)) {}
+
+bool YamlMap::Has(const std::string& key) const { return static_cast<bool>(node_[key]); }
+
+ConfigError YamlMap::Error(const std::string& what) const {
+  return ConfigError(Where(file_, node_.Mark()) + ": " +
+                     (prefix_.empty() ? "" : "in '" + prefix_ + "': ") + what);
+}
+
+ConfigError YamlMap::ErrorAt(const std::string& key, const std::string& what) const {
+  const YAML::Node n = node_[key];
+  const YAML::Mark mark = n ? n.Mark() : node_.Mark();
+  return ConfigError(Where(file_, mark) + ": key '" + prefix_ + key + "': " + what);
+}
+
+std::string YamlMap::directory() const {
+  const auto parent = std::filesystem::path(file_).parent_path();
+  return parent.string();
+}
+
+YAML::Node YamlMap::Get(const std::string& key) {
+  const YAML::Node n = node_[key];
+  if (!n) throw ErrorAt(key, "missing required key");
+  read_.insert(key);
+  return n;
+}
+
+double YamlMap::ToDouble(const YAML::Node& n, const std::string& key) const {
+  if (!n.IsScalar()) {
+    throw ConfigError(Where(file_, n.Mark()) + ": key '" + prefix_ + key + "': expected a number");
+  }
+  double v = 0.0;
+  try {
+    v = n.as<double>();
+  } catch (const YAML::Exception&) {
+    throw ConfigError(Where(file_, n.Mark()) + ": key '" + prefix_ + key +
+                      "': expected a number, got '" + n.Scalar() + "'");
+  }
+  if (!std::isfinite(v)) {
+    throw ConfigError(Where(file_, n.Mark()) + ": key '" + prefix_ + key +
+                      "': expected a finite number, got '" + n.Scalar() + "'");
+  }
+  return v;
+}
+
+double YamlMap::Double(const std::string& key) { return ToDouble(Get(key), key); }
+double YamlMap::Double(const std::string& key, double fallback) {
+  return Has(key) ? Double(key) : fallback;
+}
+
+int YamlMap::Int(const std::string& key) {
+  const double v = Double(key);
+  if (v != std::floor(v) || std::abs(v) > 1e9) throw ErrorAt(key, "expected an integer");
+  return static_cast<int>(v);
+}
+int YamlMap::Int(const std::string& key, int fallback) { return Has(key) ? Int(key) : fallback; }
+
+bool YamlMap::Bool(const std::string& key, bool fallback) {
+  if (!Has(key)) return fallback;
+  const YAML::Node n = Get(key);
+  try {
+    if (n.IsScalar()) return n.as<bool>();
+  } catch (const YAML::Exception&) {
+  }
+  throw ErrorAt(key, "expected true or false, got '" + (n.IsScalar() ? n.Scalar() : "?") + "'");
+}
+
+std::string YamlMap::String(const std::string& key) {
+  const YAML::Node n = Get(key);
+  if (!n.IsScalar()) throw ErrorAt(key, "expected a string");
+  return n.Scalar();
+}
+std::string YamlMap::String(const std::string& key, const std::string& fallback) {
+  return Has(key) ? String(key) : fallback;
+}
+
+std::vector<double> YamlMap::Doubles(const std::string& key, int size) {
+  const YAML::Node n = Get(key);
+  if (!n.IsSequence()) throw ErrorAt(key, "expected a list of numbers");
+  if (size >= 0 && static_cast<int>(n.size()) != size) {
+    throw ErrorAt(key, "expected " + std::to_string(size) + " numbers, got " +
+                           std::to_string(n.size()));
+  }
+  std::vector<double> out;
+  for (const auto& e : n) out.push_back(ToDouble(e, key));
+  return out;
+}
+
+Eigen::Vector3d YamlMap::Vector3(const std::string& key) {
+  const auto v = Doubles(key, 3);
+  return {v[0], v[1], v[2]};
+}
+Eigen::Vector3d YamlMap::Vector3(const std::string& key, const Eigen::Vector3d& fallback) {
+  return Has(key) ? Vector3(key) : fallback;
+}
+
+YamlMap YamlMap::Map(const std::string& key) {
+  const YAML::Node n = Get(key);
+  if (!n.IsMap()) throw ErrorAt(key, "expected a mapping");
+  return {n, file_, prefix_ + key + "."};
+}
+
+std::vector<YamlMap> YamlMap::MapList(const std::string& key) {
+  const YAML::Node n = Get(key);
+  if (!n.IsSequence()) throw ErrorAt(key, "expected a list");
+  std::vector<YamlMap> out;
+  for (std::size_t i = 0; i < n.size(); ++i) {
+    if (!n[i].IsMap()) {
+      throw ConfigError(Where(file_, n[i].Mark()) + ": key '" + prefix_ + key + "[" +
+                        std::to_string(i) + "]': expected a mapping");
+    }
+    out.emplace_back(n[i], file_, prefix_ + key + "[" + std::to_string(i) + "].");
+  }
+  return out;
+}
+
+YAML::Node YamlMap::Node(const std::string& key) { return Get(key); }
+
+void YamlMap::Finish() const {
+  for (const auto& kv : node_) {
+    const std::string key = kv.first.Scalar();
+    if (read_.count(key) == 0) {
+      throw ConfigError(Where(file_, kv.first.Mark()) + ": unknown key '" + prefix_ + key + "'");
+    }
+  }
+}
+
+}  // namespace fnmpc::config

@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: BSD-3-Clause
+# Installs every Debian (bookworm) package that fnmpc needs to build, test,
+# benchmark and report. Idempotent; run as root (or with sudo available).
+#   scripts/install-deps.sh            core + MuJoCo + Ceres + IPOPT + plotting
+#   scripts/install-deps.sh --with-ros also the ROS 1 packages for ros/
+set -euo pipefail
+
+packages=(
+  build-essential cmake pkg-config git
+  libeigen3-dev libyaml-cpp-dev libcli11-dev libfmt-dev libspdlog-dev nlohmann-json3-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  libmujoco-dev
+  libceres-dev coinor-libipopt-dev
+  python3-matplotlib python3-numpy
+)
+ros_packages=(
+  libroscpp-dev libstd-msgs-dev libgeometry-msgs-dev libsensor-msgs-dev libnav-msgs-dev
+  ros-std-msgs ros-geometry-msgs ros-sensor-msgs ros-nav-msgs
+  python3-rosmaster python3-roslaunch rosout librostest-dev python3-rostest librosbag-dev catkin
+  ros-message-generation python3-rosbag python3-rostopic python3-rosnode rosbash
+  python3-geometry-msgs python3-sensor-msgs
+)
+if [[ "${1:-}" == "--with-ros" ]]; then packages+=("${ros_packages[@]}"); fi
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [[ ${#missing[@]} -eq 0 ]]; then
+  echo "install-deps: all ${#packages[@]} packages already installed"
+  exit 0
+fi
+SUDO=""
+if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
+echo "install-deps: installing ${missing[*]}"
+$SUDO apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
