@@ -1,0 +1,99 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <string_view>
+
+namespace fnmpc::qp {
+
+/// Sizes of a dense QP, frozen at construction.
+struct DenseQpDims {
+  int nv = 0;  ///< number of variables
+  int nc = 0;  ///< number of general (two-sided) linear constraints
+};
+
+/// Dense strictly convex QP
+///   minimise   0.5 x' H x + g' x
+///   subject to lb  <= x   <= ub      (bounds; +-infinity = absent)
+///              lbA <= A x <= ubA     (general constraints; +-infinity = absent)
+/// H (nv x nv) symmetric positive definite; A is nc x nv. lb == ub (or lbA == ubA) is
+/// an equality. H must be stored full (both triangles).
+struct DenseQp {
+  Eigen::MatrixXd H;
+  Eigen::VectorXd g;
+  Eigen::MatrixXd A;
+  Eigen::VectorXd lb, ub, lbA, ubA;
+
+  explicit DenseQp(const DenseQpDims& dims = {});
+  [[nodiscard]] DenseQpDims dims() const { return {static_cast<int>(g.size()), static_cast<int>(A.rows())}; }
+};
+
+enum class QpStatus : int {
+  kOptimal = 0,         ///< KKT conditions hold to the tolerance
+  kInfeasible = 1,      ///< the constraints admit no point (detected by the dual method)
+  kMaxIterations = 2,   ///< the iteration limit was reached
+  kNotConvex = 3,       ///< H is not (numerically) positive definite
+  kNumericalError = 4,  ///< NaN/Inf in the data or a breakdown of the factorisation
+  kInvalidInput = 5,    ///< inconsistent bounds (lb > ub) or wrong sizes
+};
+std::string_view ToString(QpStatus s);
+
+/// Solution and multipliers. Sign convention: the Lagrangian stationarity reads
+///   H x + g + y_bounds + A' y_constraints = 0,
+/// with y_i >= 0 when the upper side of constraint i is active, y_i <= 0 when the lower
+/// side is active, and y_i = 0 when inactive.
+struct QpSolution {
+  Eigen::VectorXd x;
+  Eigen::VectorXd y_bounds;       ///< nv
+  Eigen::VectorXd y_constraints;  ///< nc
+  int iterations = 0;             ///< active-set changes (adds + drops) in the last solve
+  QpStatus status = QpStatus::kNumericalError;
+  double objective = 0.0;
+
+  explicit QpSolution(const DenseQpDims& dims = {});
+};
+
+struct QpSettings {
+  int max_iterations = 500;        ///< active-set changes per solve
+  double tolerance = 1e-10;        ///< primal feasibility / dual sign tolerance
+  bool warm_start = true;          ///< start from the previous solve's active set
+};
+
+/// Dual active-set solver (Goldfarb-Idnani) for DenseQp, warm-started from the previous
+/// active set. Workspace is sized at construction: Solve() performs no heap allocation.
+/// Never throws in Solve(): every failure is a status, and x is never NaN on kOptimal.
+class DenseQpSolver {
+ public:
+  DenseQpSolver(const DenseQpDims& dims, const QpSettings& settings = {});
+  QpStatus Solve(const DenseQp& qp, QpSolution* solution);
+  /// Forget the active set: the next solve starts cold.
+  void ResetWarmStart();
+  [[nodiscard]] const DenseQpDims& dims() const { return dims_; }
+  [[nodiscard]] const QpSettings& settings() const { return settings_; }
+
+ private:
+  DenseQpDims dims_;
+  QpSettings settings_;
+  // Implementation workspace (factorisations, active set, ...) lives below.
+  struct Workspace;
+  // Owned workspace, allocated once in the constructor.
+  std::unique_ptr<Workspace> ws_;
+ public:
+  ~DenseQpSolver();
+  DenseQpSolver(DenseQpSolver&&) noexcept;
+  DenseQpSolver& operator=(DenseQpSolver&&) noexcept;
+};
+
+/// Infinity norms of the KKT residuals of (x, y) for qp, for tests and diagnostics:
+/// stationarity, primal violation, dual sign violation, complementarity.
+struct KktResiduals {
+  double stationarity = 0.0;
+  double primal = 0.0;
+  double dual = 0.0;
+  double complementarity = 0.0;
+  [[nodiscard]] double Max() const;
+};
+KktResiduals ComputeKktResiduals(const DenseQp& qp, const QpSolution& solution);
+
+}  // namespace fnmpc::qp
