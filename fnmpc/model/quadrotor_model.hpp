@@ -1,0 +1,70 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include <Eigen/Core>
+
+#include "fnmpc/core/rotation.hpp"
+#include "fnmpc/core/types.hpp"
+#include "fnmpc/model/vehicle_params.hpp"
+
+namespace fnmpc::model {
+
+/// The constants of the NMPC prediction model: mass and the identified first-order
+/// closed-loop attitude dynamics (roll, pitch, yaw) of the reference work, Eqs. (2)-(4).
+struct AttitudeModelParams {
+  double mass = 1.37;                                ///< [kg]
+  Eigen::Vector3d time_constant{0.1203, 0.1303, 0.0651};  ///< tau_i [s]
+  Eigen::Vector3d gain{1.01, 1.02, 0.99};            ///< k_i [-]
+
+  static AttitudeModelParams From(const VehicleParams& v) {
+    return {v.mass, v.attitude_time_constant, v.attitude_gain};
+  }
+};
+
+/// Quadrotor with first-order closed-loop attitude (problem L of the benchmark spec).
+///
+/// State x (kNx = 9): [p (3) position, v (3) velocity, phi, theta, psi] in the inertial
+/// frame (ENU, z up). Input u (kNu = 3): [T collective thrust [N], phi_ref, theta_ref].
+/// Online data: psi_ref [rad].
+///   p' = v,  v' = R(phi,theta,psi) e3 T/m - g e3,  angle_i' = (k_i ref_i - angle_i)/tau_i.
+struct QuadrotorModel {
+  static constexpr int kNx = 9;
+  static constexpr int kNu = 3;
+  enum Index : int { kPos = 0, kVel = 3, kPhi = 6, kTheta = 7, kPsi = 8 };
+  enum InputIndex : int { kThrust = 0, kPhiRef = 1, kThetaRef = 2 };
+
+  /// Time derivative, templated on the scalar for automatic differentiation in tests.
+  template <class S>
+  static Eigen::Matrix<S, kNx, 1> Flow(const Eigen::Matrix<S, kNx, 1>& x,
+                                      const Eigen::Matrix<S, kNu, 1>& u, double psi_ref,
+                                      const AttitudeModelParams& m) {
+    Eigen::Matrix<S, kNx, 1> f;
+    f.template segment<3>(kPos) = x.template segment<3>(kVel);
+    f.template segment<3>(kVel) = BodyZ<S>(x[kPhi], x[kTheta], x[kPsi]) * (u[kThrust] / m.mass);
+    f[kVel + 2] -= S(kGravity);
+    f[kPhi] = (m.gain[0] * u[kPhiRef] - x[kPhi]) / m.time_constant[0];
+    f[kTheta] = (m.gain[1] * u[kThetaRef] - x[kTheta]) / m.time_constant[1];
+    f[kPsi] = (m.gain[2] * psi_ref - x[kPsi]) / m.time_constant[2];
+    return f;
+  }
+
+  /// Flow and its Jacobians f_x (kNx x kNx) and f_u (kNx x kNu), derived by hand.
+  static void FlowJacobian(const Vec<kNx>& x, const Vec<kNu>& u, double psi_ref,
+                           const AttitudeModelParams& m, Vec<kNx>* f, Mat<kNx, kNx>* fx,
+                           Mat<kNx, kNu>* fu);
+};
+
+/// Jacobian blocks shared by every model with the quadrotor's own velocity/attitude:
+/// rows of v' and angle' with respect to (angles, inputs).
+struct OwnDynamicsJacobian {
+  Mat3 dv_dangles;     ///< d v' / d(phi, theta, psi)
+  Vec3 dv_dthrust;     ///< d v' / d T
+  Vec3 dangle_dangle;  ///< diagonal: -1/tau_i
+  Vec3 dangle_dref;    ///< diagonal: k_i/tau_i (phi_ref, theta_ref; yaw's is online data)
+  Vec3 vdot;           ///< v'
+  Vec3 angle_dot;      ///< angle'
+  static OwnDynamicsJacobian At(double phi, double theta, double psi, const Vec3& u,
+                                double psi_ref, const AttitudeModelParams& m);
+};
+
+}  // namespace fnmpc::model

@@ -1,0 +1,82 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "fnmpc/qp/dense_qp.hpp"
+
+namespace fnmpc::rti {
+
+/// Settings of the real-time-iteration solver (defaults: the reference work and the
+/// benchmark spec).
+struct RtiSettings {
+  int horizon = 15;                  ///< N, shooting intervals
+  double sample_time = 0.05;         ///< Ts [s], length of one interval
+  int integrator_steps = 2;          ///< RK4 steps per interval
+  int max_initial_iterations = 50;   ///< SQP iteration cap of the first call (t = 0)
+  double kkt_threshold = 1e-6;       ///< Algorithm 1: stop iterating below this KKT value
+  int max_iterations = 1;            ///< SQP iterations per later call (1 = pure RTI)
+  double cpu_budget = 0.05;          ///< [s] later calls stop iterating past this CPU time
+  double soft_linear_weight = 1e4;   ///< L1 penalty on the per-stage slack of soft bounds
+  double soft_quadratic_weight = 1e2;  ///< L2 penalty on the same slack
+  qp::QpSettings qp;                 ///< settings of the QP solver
+
+  void Validate() const {
+    auto fail = [](const std::string& what) {
+      throw std::invalid_argument("[RtiSettings] " + what);
+    };
+    if (horizon < 1) fail("horizon must be >= 1, got " + std::to_string(horizon));
+    if (!(sample_time > 0.0)) fail("sample_time must be > 0, got " + std::to_string(sample_time));
+    if (integrator_steps < 1) fail("integrator_steps must be >= 1");
+    if (max_initial_iterations < 1) fail("max_initial_iterations must be >= 1");
+    if (max_iterations < 1) fail("max_iterations must be >= 1");
+    if (!(kkt_threshold > 0.0)) fail("kkt_threshold must be > 0");
+    if (!(cpu_budget > 0.0)) fail("cpu_budget must be > 0");
+    if (!(soft_linear_weight >= 0.0) || !(soft_quadratic_weight > 0.0)) {
+      fail("soft weights: linear must be >= 0 and quadratic > 0");
+    }
+  }
+};
+
+/// Which state components carry box bounds (fixed at construction: it sets the QP's
+/// size) and whether each is soft. Bound values are set per stage at run time.
+struct StateBoundLayout {
+  std::vector<int> indices;  ///< bounded state components
+  std::vector<bool> soft;    ///< same length: true = soft (slack with exact penalty)
+};
+
+/// Outcome of one solver call.
+enum class RtiStatus : int {
+  kSuccess = 0,      ///< QP solved, iterate updated
+  kQpFailure = 1,    ///< QP infeasible or failed: fallback applied
+  kNanDetected = 2,  ///< NaN/Inf in the linearisation or the step: fallback applied
+  kInvalidInput = 3, ///< NaN/Inf in x0: fallback applied
+};
+constexpr std::string_view ToString(RtiStatus s) {
+  switch (s) {
+    case RtiStatus::kSuccess: return "success";
+    case RtiStatus::kQpFailure: return "qp_failure";
+    case RtiStatus::kNanDetected: return "nan_detected";
+    case RtiStatus::kInvalidInput: return "invalid_input";
+  }
+  return "?";
+}
+
+/// Statistics of the last call (acados-like per-phase times, always on).
+struct RtiStats {
+  RtiStatus status = RtiStatus::kSuccess;
+  qp::QpStatus qp_status = qp::QpStatus::kOptimal;
+  int sqp_iterations = 0;   ///< SQP iterations in the last call
+  int qp_iterations = 0;    ///< active-set changes, summed over the call's QPs
+  bool fallback = false;    ///< the shifted previous solution was applied
+  long fallback_count = 0;  ///< fallbacks since construction
+  double kkt = -1.0;        ///< KKT value when computed (else -1)
+  double time_prepare = 0;  ///< [s] linearisation + condensing of the last iteration
+  double time_feedback = 0; ///< [s] from x0 to u0 of the last iteration
+  double time_total = 0;    ///< [s] whole call
+};
+
+}  // namespace fnmpc::rti

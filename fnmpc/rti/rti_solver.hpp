@@ -1,0 +1,463 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "fnmpc/core/stopwatch.hpp"
+#include "fnmpc/core/types.hpp"
+#include "fnmpc/model/rk4.hpp"
+#include "fnmpc/qp/dense_qp.hpp"
+#include "fnmpc/rti/rti_settings.hpp"
+
+namespace fnmpc::rti {
+
+/// Real-time-iteration SQP solver for a nonlinear least-squares OCP `Problem`
+/// (see fnmpc/ocp/problems.hpp):
+///   min  sum_k 0.5|y(x_k,u_k,p_k) - yref_k|^2_W + 0.5|yN(x_N,p_N) - yrefN|^2_WN
+///   s.t. x_0 = x0, x_{k+1} = RK4(x_k, u_k, p_k), lbu_k <= u_k <= ubu_k,
+///        lbx_k <= x_k(i) <= ubx_k for the components i of the StateBoundLayout (k = 1..N),
+///        soft components relaxed by one slack per stage s_k >= 0 penalised by
+///        rho1 s_k + 0.5 rho2 s_k^2 (an exact L-infinity penalty: for rho1 larger than the
+///        sum of that stage's bound multipliers the soft problem has the hard optimum).
+///
+/// Multiple shooting, RK4 with exact forward sensitivities, Gauss-Newton Hessian,
+/// condensing into a dense QP solved by our active-set solver (fnmpc/qp). Prepare()
+/// linearises and condenses around the current guess before x0 is known; Feedback(x0)
+/// embeds x0, solves the QP and updates the iterate (its time is the feedback latency).
+/// Step() runs Algorithm 1 of the reference work. No heap allocation after construction.
+template <class Problem>
+class RtiSolver {
+ public:
+  static constexpr int kNx = Problem::kNx, kNu = Problem::kNu, kNy = Problem::kNy,
+                       kNyN = Problem::kNyN, kNp = Problem::kNp;
+  using Model = typename Problem::Model;
+  using X = Vec<kNx>;
+  using U = Vec<kNu>;
+  using Y = Vec<kNy>;
+  using YN = Vec<kNyN>;
+  using P = Vec<kNp>;
+  using MX = Mat<kNx, kNx>;
+  using MU = Mat<kNx, kNu>;
+
+  RtiSolver(const Problem& problem, const RtiSettings& settings, const StateBoundLayout& layout)
+      : problem_(problem), settings_(settings), layout_(layout) {
+    settings_.Validate();
+    if (layout_.soft.size() != layout_.indices.size()) {
+      throw std::invalid_argument("[RtiSolver] StateBoundLayout: soft and indices differ in size");
+    }
+    for (int i : layout_.indices) {
+      if (i < 0 || i >= kNx) {
+        throw std::invalid_argument("[RtiSolver] bounded state index out of range: " +
+                                    std::to_string(i));
+      }
+    }
+    n_ = settings_.horizon;
+    int rows_per_stage = 0;
+    bool any_soft = false;
+    for (bool s : layout_.soft) {
+      rows_per_stage += s ? 2 : 1;
+      any_soft = any_soft || s;
+    }
+    nsl_ = any_soft ? n_ : 0;
+    nz_ = n_ * kNu + nsl_;
+    nc_ = n_ * rows_per_stage;
+    for (int k = 1; k <= n_; ++k) {
+      for (std::size_t c = 0; c < layout_.indices.size(); ++c) {
+        const int kind = layout_.soft[c] ? 1 : 0;
+        rows_.push_back({k, layout_.indices[c], kind});
+        if (kind == 1) rows_.push_back({k, layout_.indices[c], 2});
+      }
+    }
+    x_.assign(n_ + 1, X::Zero());
+    u_.assign(n_, U::Zero());
+    yref_.assign(n_, Y::Zero());
+    yref_n_.setZero();
+    w_.setOnes();
+    w_n_.setOnes();
+    params_.assign(n_ + 1, P::Zero());
+    lbx_.assign(n_ + 1, X::Constant(-kInf));
+    ubx_.assign(n_ + 1, X::Constant(kInf));
+    lbu_.assign(n_, U::Constant(-kInf));
+    ubu_.assign(n_, U::Constant(kInf));
+    a_.assign(n_, MX::Zero());
+    b_.assign(n_, MU::Zero());
+    d_.assign(n_, X::Zero());
+    q_mat_.assign(n_ + 1, MX::Zero());
+    s_mat_.assign(n_, Mat<kNu, kNx>::Zero());
+    r_mat_.assign(n_, Mat<kNu, kNu>::Zero());
+    q_vec_.assign(n_ + 1, X::Zero());
+    r_vec_.assign(n_, U::Zero());
+    e_.assign(n_ + 1, X::Zero());
+    dx_.assign(n_ + 1, X::Zero());
+    du_.assign(n_, U::Zero());
+    lambda_.assign(n_ + 1, X::Zero());
+    mu_.assign(n_ + 1, X::Zero());
+    g_.setZero(n_ * kNx, n_ * kNu);
+    qp_ = qp::DenseQp({nz_, nc_});
+    qp_solution_ = qp::QpSolution({nz_, nc_});
+    qp_solver_ = std::make_unique<qp::DenseQpSolver>(qp::DenseQpDims{nz_, nc_}, settings_.qp);
+    qp_.A.setZero();
+    qp_.H.setZero();
+  }
+
+  // ---- Stage data (call before Prepare(); no allocation) ----
+
+  /// Diagonal weights of the stage (kNy) and terminal (kNyN) residuals.
+  void SetWeights(const Y& w, const YN& w_terminal) {
+    w_ = w;
+    w_n_ = w_terminal;
+  }
+  /// Reference of stage k = 0..N-1.
+  void SetReference(int k, const Y& yref) { yref_[k] = yref; }
+  void SetTerminalReference(const YN& yref) { yref_n_ = yref; }
+  /// Parameters (online data) of node k = 0..N; p[0] is the yaw reference.
+  void SetParameters(int k, const P& p) { params_[k] = p; }
+  /// Bounds on the layout's state components at node k = 1..N (other entries ignored).
+  void SetStateBounds(int k, const X& lb, const X& ub) {
+    lbx_[k] = lb;
+    ubx_[k] = ub;
+  }
+  /// Input bounds of stage k = 0..N-1.
+  void SetInputBounds(int k, const U& lb, const U& ub) {
+    lbu_[k] = lb;
+    ubu_[k] = ub;
+  }
+
+  /// Initial guess: every node at x0, every control at u (spec: (m g, 0, 0)).
+  void InitializeGuess(const X& x0, const U& u) {
+    std::fill(x_.begin(), x_.end(), x0);
+    std::fill(u_.begin(), u_.end(), u);
+    first_call_ = true;
+    prepared_ = false;
+  }
+
+  /// Warm start for the next sampling time: drop the first node, duplicate the last.
+  void Shift() {
+    for (int k = 0; k < n_; ++k) x_[k] = x_[k + 1];
+    for (int k = 0; k + 1 < n_; ++k) u_[k] = u_[k + 1];
+    prepared_ = false;
+  }
+
+  /// Linearise and condense around the current guess (the preparation phase).
+  /// Returns false when the linearisation produced NaN/Inf.
+  bool Prepare() {
+    Stopwatch sw;
+    bool finite = true;
+    Y y;
+    Mat<kNy, kNx> yx;
+    Mat<kNy, kNu> yu;
+    for (int k = 0; k < n_; ++k) {
+      const X next = model::Rk4<Model>(x_[k], u_[k], params_[k][0], problem_.params,
+                                       settings_.sample_time, settings_.integrator_steps, &a_[k],
+                                       &b_[k]);
+      d_[k] = next - x_[k + 1];
+      problem_.StageResidual(x_[k], u_[k], params_[k], &y, &yx, &yu);
+      const Y wr = w_.cwiseProduct(y - yref_[k]);
+      const Mat<kNy, kNx> wyx = w_.asDiagonal() * yx;
+      q_mat_[k].noalias() = yx.transpose() * wyx;
+      s_mat_[k].noalias() = yu.transpose() * wyx;
+      r_mat_[k].noalias() = yu.transpose() * w_.asDiagonal() * yu;
+      q_vec_[k].noalias() = yx.transpose() * wr;
+      r_vec_[k].noalias() = yu.transpose() * wr;
+      finite = finite && d_[k].allFinite() && a_[k].allFinite() && b_[k].allFinite() &&
+               wr.allFinite();
+    }
+    {
+      YN yn;
+      Mat<kNyN, kNx> ynx;
+      problem_.TerminalResidual(x_[n_], params_[n_], &yn, &ynx);
+      q_mat_[n_].noalias() = ynx.transpose() * w_n_.asDiagonal() * ynx;
+      q_vec_[n_].noalias() = ynx.transpose() * w_n_.cwiseProduct(yn - yref_n_);
+      finite = finite && q_vec_[n_].allFinite();
+    }
+    Condense();
+    prepared_ = finite;
+    stats_.time_prepare = sw.Seconds();
+    return finite;
+  }
+
+  /// Embeds x0, solves the QP and updates the iterate (the feedback phase). On failure
+  /// the iterate is left unchanged and *u0 is the current guess's first control (the
+  /// time-shifted previous solution): Algorithm 1's fallback.
+  RtiStatus Feedback(const X& x0, U* u0) {
+    Stopwatch sw;
+    RtiStatus status = RtiStatus::kSuccess;
+    if (!x0.allFinite()) {
+      status = RtiStatus::kInvalidInput;
+    } else if (!prepared_) {
+      status = RtiStatus::kNanDetected;
+    } else {
+      // Free response of the linearised dynamics (no input change), including x0.
+      e_[0] = x0 - x_[0];
+      for (int k = 0; k < n_; ++k) {
+        e_[k + 1].noalias() = a_[k] * e_[k];
+        e_[k + 1] += d_[k];
+      }
+      // Condensed gradient by a backward sweep.
+      X p = q_mat_[n_] * e_[n_] + q_vec_[n_];
+      for (int k = n_ - 1; k >= 0; --k) {
+        U gk = r_vec_[k];
+        gk.noalias() += s_mat_[k] * e_[k];
+        gk.noalias() += b_[k].transpose() * p;
+        qp_.g.template segment<kNu>(k * kNu) = gk;
+        X pk = q_vec_[k];
+        pk.noalias() += q_mat_[k] * e_[k];
+        pk.noalias() += a_[k].transpose() * p;
+        p = pk;
+      }
+      for (int k = 0; k < n_; ++k) {
+        qp_.lb.template segment<kNu>(k * kNu) = lbu_[k] - u_[k];
+        qp_.ub.template segment<kNu>(k * kNu) = ubu_[k] - u_[k];
+      }
+      for (int r = 0; r < nc_; ++r) {
+        const Row& row = rows_[r];
+        const double base = x_[row.stage][row.index] + e_[row.stage][row.index];
+        const double lb = lbx_[row.stage][row.index] - base;
+        const double ub = ubx_[row.stage][row.index] - base;
+        qp_.lbA[r] = row.kind == 2 ? -kInf : lb;
+        qp_.ubA[r] = row.kind == 1 ? kInf : ub;
+      }
+      const qp::QpStatus qs = qp_solver_->Solve(qp_, &qp_solution_);
+      stats_.qp_status = qs;
+      stats_.qp_iterations += qp_solution_.iterations;
+      if (qs != qp::QpStatus::kOptimal) {
+        status = RtiStatus::kQpFailure;
+      } else {
+        // Expand: dx_{k+1} = A dx_k + B du_k + d_k.
+        dx_[0] = e_[0];
+        for (int k = 0; k < n_; ++k) {
+          du_[k] = qp_solution_.x.template segment<kNu>(k * kNu);
+          dx_[k + 1].noalias() = a_[k] * dx_[k];
+          dx_[k + 1].noalias() += b_[k] * du_[k];
+          dx_[k + 1] += d_[k];
+        }
+        bool finite = true;
+        for (int k = 0; k <= n_; ++k) finite = finite && dx_[k].allFinite();
+        if (!finite) {
+          status = RtiStatus::kNanDetected;
+        } else {
+          for (int k = 0; k <= n_; ++k) x_[k] += dx_[k];
+          for (int k = 0; k < n_; ++k) u_[k] += du_[k];
+          x_[0] = x0;
+          has_multipliers_ = true;
+        }
+      }
+    }
+    prepared_ = false;
+    *u0 = u_[0];
+    stats_.status = status;
+    stats_.time_feedback = sw.Seconds();
+    return status;
+  }
+
+  /// Algorithm 1 of the reference work for the state x0 at the current sampling time:
+  /// the first call (after InitializeGuess) iterates until KKT < threshold (capped by
+  /// max_initial_iterations); later calls iterate while the CPU time is within the
+  /// budget, KKT >= threshold and fewer than max_iterations were done. On a solver error
+  /// the time-shifted previous solution's first control is returned, the fallback flag
+  /// raised and counted. Does not shift: call Shift() before the next sampling time.
+  RtiStatus Step(const X& x0, U* u0) {
+    Stopwatch sw;
+    const double cpu0 = ThreadCpuSeconds();
+    stats_.qp_iterations = 0;
+    stats_.sqp_iterations = 0;
+    stats_.kkt = -1.0;
+    const bool first = first_call_;
+    const int cap = first ? settings_.max_initial_iterations : settings_.max_iterations;
+    RtiStatus status = RtiStatus::kSuccess;
+    const U fallback_u = u_[0];
+    for (int it = 0; it < cap; ++it) {
+      if (!prepared_ && !Prepare()) {
+        status = RtiStatus::kNanDetected;
+        break;
+      }
+      status = Feedback(x0, u0);
+      ++stats_.sqp_iterations;
+      if (status != RtiStatus::kSuccess) break;
+      if (it + 1 >= cap) break;
+      stats_.kkt = ComputeKkt(x0);
+      if (stats_.kkt < settings_.kkt_threshold) break;
+      if (!first && ThreadCpuSeconds() - cpu0 > settings_.cpu_budget) break;
+    }
+    stats_.fallback = status != RtiStatus::kSuccess;
+    if (stats_.fallback) {
+      ++stats_.fallback_count;
+      *u0 = fallback_u;
+    }
+    stats_.status = status;
+    first_call_ = false;
+    stats_.time_total = sw.Seconds();
+    return status;
+  }
+
+  /// KKT value of the current iterate with the last QP's multipliers (benchmark spec):
+  /// the largest of Lagrangian stationarity, dynamics and initial-state defects, bound
+  /// violation and complementarity (infinity norms). Linearises at the current iterate,
+  /// so call it outside timed sections. Uses the data of the last Prepare()/Feedback().
+  double ComputeKkt(const X& x0) {
+    if (!has_multipliers_) return kInf;
+    // Dynamics multipliers from the QP (at its linearisation point).
+    std::fill(mu_.begin(), mu_.end(), X::Zero());
+    for (int r = 0; r < nc_; ++r) mu_[rows_[r].stage][rows_[r].index] += qp_solution_.y_constraints[r];
+    lambda_[n_] = q_mat_[n_] * dx_[n_] + q_vec_[n_] + mu_[n_];
+    for (int k = n_ - 1; k >= 1; --k) {
+      X l = q_vec_[k] + mu_[k];
+      l.noalias() += q_mat_[k] * dx_[k];
+      l.noalias() += s_mat_[k].transpose() * du_[k];
+      l.noalias() += a_[k].transpose() * lambda_[k + 1];
+      lambda_[k] = l;
+    }
+    double kkt = (x_[0] - x0).template lpNorm<Eigen::Infinity>();
+    Y y;
+    Mat<kNy, kNx> yx;
+    Mat<kNy, kNu> yu;
+    MX a;
+    MU b;
+    for (int k = 0; k < n_; ++k) {
+      const X next = model::Rk4<Model>(x_[k], u_[k], params_[k][0], problem_.params,
+                                       settings_.sample_time, settings_.integrator_steps, &a, &b);
+      kkt = std::max(kkt, (next - x_[k + 1]).template lpNorm<Eigen::Infinity>());
+      problem_.StageResidual(x_[k], u_[k], params_[k], &y, &yx, &yu);
+      const Y wr = w_.cwiseProduct(y - yref_[k]);
+      U gu = yu.transpose() * wr + b.transpose() * lambda_[k + 1] +
+             qp_solution_.y_bounds.template segment<kNu>(k * kNu);
+      kkt = std::max(kkt, gu.template lpNorm<Eigen::Infinity>());
+      if (k >= 1) {
+        X gx = yx.transpose() * wr - lambda_[k] + a.transpose() * lambda_[k + 1] + mu_[k];
+        kkt = std::max(kkt, gx.template lpNorm<Eigen::Infinity>());
+      }
+      for (int i = 0; i < kNu; ++i) {
+        kkt = std::max({kkt, lbu_[k][i] - u_[k][i], u_[k][i] - ubu_[k][i]});
+        const double yb = qp_solution_.y_bounds[k * kNu + i];
+        const double gap = yb > 0 ? ubu_[k][i] - u_[k][i] : u_[k][i] - lbu_[k][i];
+        if (yb != 0.0 && std::isfinite(gap)) kkt = std::max(kkt, std::abs(yb * gap));
+      }
+    }
+    {
+      YN yn;
+      Mat<kNyN, kNx> ynx;
+      problem_.TerminalResidual(x_[n_], params_[n_], &yn, &ynx);
+      X gx = ynx.transpose() * w_n_.cwiseProduct(yn - yref_n_) - lambda_[n_] + mu_[n_];
+      kkt = std::max(kkt, gx.template lpNorm<Eigen::Infinity>());
+    }
+    for (int r = 0; r < nc_; ++r) {
+      const Row& row = rows_[r];
+      const double v = x_[row.stage][row.index];
+      const double lb = lbx_[row.stage][row.index], ub = ubx_[row.stage][row.index];
+      const double slack = nsl_ > 0 ? qp_solution_.x[n_ * kNu + row.stage - 1] : 0.0;
+      if (row.kind == 0) kkt = std::max({kkt, lb - v, v - ub});
+      const double yc = qp_solution_.y_constraints[r];
+      const double relax = row.kind == 0 ? 0.0 : slack;
+      const double gap = yc > 0 ? ub + relax - v : v - (lb - relax);
+      if (yc != 0.0 && std::isfinite(gap)) kkt = std::max(kkt, std::abs(yc * gap));
+    }
+    return kkt;
+  }
+
+  // ---- Accessors ----
+  [[nodiscard]] const std::vector<X>& states() const { return x_; }
+  [[nodiscard]] const std::vector<U>& inputs() const { return u_; }
+  [[nodiscard]] const RtiStats& stats() const { return stats_; }
+  [[nodiscard]] const RtiSettings& settings() const { return settings_; }
+  [[nodiscard]] const Problem& problem() const { return problem_; }
+  [[nodiscard]] int horizon() const { return n_; }
+  [[nodiscard]] const qp::QpSolution& qp_solution() const { return qp_solution_; }
+  /// Slack of stage k = 1..N of the soft bounds in the last QP (0 without soft bounds).
+  [[nodiscard]] double slack(int k) const {
+    return nsl_ > 0 ? qp_solution_.x[n_ * kNu + k - 1] : 0.0;
+  }
+  [[nodiscard]] const X& lower_state_bound(int k) const { return lbx_[k]; }
+  [[nodiscard]] const X& upper_state_bound(int k) const { return ubx_[k]; }
+  [[nodiscard]] const U& lower_input_bound(int k) const { return lbu_[k]; }
+  [[nodiscard]] const U& upper_input_bound(int k) const { return ubu_[k]; }
+  [[nodiscard]] const StateBoundLayout& layout() const { return layout_; }
+
+ private:
+  struct Row {
+    int stage;  // node k = 1..N
+    int index;  // state component
+    int kind;   // 0 hard two-sided, 1 soft lower, 2 soft upper
+  };
+
+  // Dense condensing of the Hessian and the constraint rows (independent of x0).
+  void Condense() {
+    // G_{k,j} = d x_k / d u_j: block row k-1, block column j < k.
+    for (int j = 0; j < n_; ++j) {
+      g_.template block<kNx, kNu>(j * kNx, j * kNu) = b_[j];
+      for (int k = j + 1; k < n_; ++k) {
+        g_.template block<kNx, kNu>(k * kNx, j * kNu).noalias() =
+            a_[k] * g_.template block<kNx, kNu>((k - 1) * kNx, j * kNu);
+      }
+    }
+    // Hessian columns by backward sweeps.
+    Mat<kNx, kNu> p, pk;
+    for (int j = 0; j < n_; ++j) {
+      p.noalias() = q_mat_[n_] * g_.template block<kNx, kNu>((n_ - 1) * kNx, j * kNu);
+      for (int k = n_ - 1; k > j; --k) {
+        const auto gkj = g_.template block<kNx, kNu>((k - 1) * kNx, j * kNu);
+        Mat<kNu, kNu> hkj;
+        hkj.noalias() = s_mat_[k] * gkj;
+        hkj.noalias() += b_[k].transpose() * p;
+        qp_.H.template block<kNu, kNu>(k * kNu, j * kNu) = hkj;
+        qp_.H.template block<kNu, kNu>(j * kNu, k * kNu) = hkj.transpose();
+        pk.noalias() = q_mat_[k] * gkj;
+        pk.noalias() += a_[k].transpose() * p;
+        p = pk;
+      }
+      Mat<kNu, kNu> hjj = r_mat_[j];
+      hjj.noalias() += b_[j].transpose() * p;
+      qp_.H.template block<kNu, kNu>(j * kNu, j * kNu) = 0.5 * (hjj + hjj.transpose());
+    }
+    for (int s = 0; s < nsl_; ++s) {
+      qp_.H(n_ * kNu + s, n_ * kNu + s) = settings_.soft_quadratic_weight;
+      qp_.g[n_ * kNu + s] = settings_.soft_linear_weight;
+      qp_.lb[n_ * kNu + s] = 0.0;
+      qp_.ub[n_ * kNu + s] = kInf;
+    }
+    for (int r = 0; r < nc_; ++r) {
+      const Row& row = rows_[r];
+      qp_.A.row(r).head(n_ * kNu) = g_.row((row.stage - 1) * kNx + row.index);
+      if (row.kind != 0) qp_.A(r, n_ * kNu + row.stage - 1) = row.kind == 1 ? 1.0 : -1.0;
+    }
+  }
+
+  Problem problem_;
+  RtiSettings settings_;
+  StateBoundLayout layout_;
+  int n_ = 0, nsl_ = 0, nz_ = 0, nc_ = 0;
+  std::vector<Row> rows_;
+  std::vector<X> x_;
+  std::vector<U> u_;
+  std::vector<Y> yref_;
+  YN yref_n_;
+  Y w_;
+  YN w_n_;
+  std::vector<P> params_;
+  std::vector<X> lbx_, ubx_;
+  std::vector<U> lbu_, ubu_;
+  std::vector<MX> a_;
+  std::vector<MU> b_;
+  std::vector<X> d_;
+  std::vector<MX> q_mat_;
+  std::vector<Mat<kNu, kNx>> s_mat_;
+  std::vector<Mat<kNu, kNu>> r_mat_;
+  std::vector<X> q_vec_;
+  std::vector<U> r_vec_;
+  std::vector<X> e_, dx_, lambda_, mu_;
+  std::vector<U> du_;
+  MatX g_;
+  qp::DenseQp qp_;
+  qp::QpSolution qp_solution_;
+  std::unique_ptr<qp::DenseQpSolver> qp_solver_;
+  RtiStats stats_;
+  bool prepared_ = false;
+  bool first_call_ = true;
+  bool has_multipliers_ = false;
+};
+
+}  // namespace fnmpc::rti
