@@ -1,0 +1,708 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "fnmpc/sim/world.hpp"
+
+#include <mujoco/mujoco.h>
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <algorithm>
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <iomanip>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+
+#include "fnmpc/core/rotation.hpp"
+
+namespace fnmpc::sim {
+
+namespace {
+
+constexpr double kRpmToRadPerSec = 2.0 * M_PI / 60.0;
+constexpr double kTimeEps = 1e-9;  // [s] tolerance of the sample schedules
+// Landing gear geometry, body frame [m]: feet spheres under the arms.
+constexpr double kFootRadius = 0.01;
+constexpr double kFootZ = -(World::kRestHeight - kFootRadius);
+constexpr double kHubHalfSize = 0.06;
+constexpr double kHubHalfHeight = 0.03;
+
+/// Shortest text that reads back to exactly v.
+std::string Num(double v) {
+  std::array<char, 32> buf{};
+  const auto res = std::to_chars(buf.data(), buf.data() + buf.size(), v);
+  return std::string(buf.data(), res.ptr);
+}
+
+void Require(bool ok, const std::string& what) {
+  if (!ok) throw std::invalid_argument(what);
+}
+
+void CheckSpec(const SensorSpec& s, const std::string& who, std::string_view name) {
+  const std::string ctx = "[World] " + who + " sensor '" + std::string(name) + "': ";
+  if (!s.enabled) return;
+  Require(s.rate_hz > 0.0 && std::isfinite(s.rate_hz),
+          ctx + "rate_hz must be > 0, got " + std::to_string(s.rate_hz));
+  Require(s.latency_s >= 0.0 && std::isfinite(s.latency_s),
+          ctx + "latency_s must be >= 0, got " + std::to_string(s.latency_s));
+  Require(
+      s.dropout_probability >= 0.0 && s.dropout_probability < 1.0,
+      ctx + "dropout_probability must be in [0, 1), got " + std::to_string(s.dropout_probability));
+  Require(s.noise.allFinite() && (s.noise.array() >= 0.0).all() && s.noise2.allFinite() &&
+              (s.noise2.array() >= 0.0).all(),
+          ctx + "noise standard deviations must be finite and >= 0");
+  Require(s.range_noise_growth >= 0.0,
+          ctx + "range_noise_growth must be >= 0, got " + std::to_string(s.range_noise_growth));
+  Require(s.max_range > 0.0, ctx + "max_range must be > 0, got " + std::to_string(s.max_range));
+  Require(s.field_of_view > 0.0,
+          ctx + "field_of_view must be > 0, got " + std::to_string(s.field_of_view));
+}
+
+const SensorSpec& SpecOf(const SensorsConfig& c, int kind) {
+  switch (static_cast<SensorKind>(kind)) {
+    case SensorKind::kMocapPose:
+      return c.mocap;
+    case SensorKind::kImu:
+      return c.imu;
+    case SensorKind::kOpticalFlow:
+      return c.optical_flow;
+    case SensorKind::kCompass:
+      return c.compass;
+    case SensorKind::kBattery:
+      return c.battery;
+    case SensorKind::kRelative:
+      break;
+  }
+  return c.relative;
+}
+
+Vec3 EulerOf(const Mat3& r) {
+  return {std::atan2(r(2, 1), r(2, 2)), -std::asin(std::clamp(r(2, 0), -1.0, 1.0)),
+          std::atan2(r(1, 0), r(0, 0))};
+}
+
+/// Thrust of one rotor [N] at steady state for a throttle, by Newton warm-started at
+/// *guess with the robust bracketing inverse as fallback. Below the idle throttle
+/// (the polynomial's value at zero thrust) the rotor does not turn.
+double ThrustForThrottle(const model::ThrottlePolynomial& p, double throttle, double voltage,
+                         double* guess) {
+  if (throttle <= 0.0 || throttle <= p.Throttle(0.0, voltage)) return 0.0;
+  double f = *guess;
+  if (f > 0.0) {
+    for (int it = 0; it < 6; ++it) {
+      const double r = p.Throttle(f, voltage) - throttle;
+      if (std::abs(r) < 1e-13) {
+        *guess = f;
+        return f;
+      }
+      const double d = p.DThrottleDThrust(f, voltage);
+      if (!(d > 0.0)) break;
+      f -= r / d;
+      if (!(f > 0.0)) break;
+    }
+  }
+  f = p.Thrust(throttle, voltage);
+  if (!std::isfinite(f)) f = p.Thrust(throttle, voltage, 200.0);
+  if (!std::isfinite(f)) f = 0.0;
+  *guess = f;
+  return f;
+}
+
+struct Queued {
+  Measurement m;
+  std::uint64_t seq = 0;
+};
+/// Heap order: the smallest arrival (then stamp, then sequence) on top.
+bool Later(const Queued& a, const Queued& b) {
+  if (a.m.arrival != b.m.arrival) return a.m.arrival > b.m.arrival;
+  if (a.m.stamp != b.m.stamp) return a.m.stamp > b.m.stamp;
+  return a.seq > b.seq;
+}
+
+}  // namespace
+
+void ValidateSensors(const SensorsConfig& s, const std::string& who) {
+  CheckSpec(s.mocap, who, "mocap");
+  CheckSpec(s.imu, who, "imu");
+  CheckSpec(s.optical_flow, who, "optical_flow");
+  CheckSpec(s.compass, who, "compass");
+  CheckSpec(s.battery, who, "battery");
+  CheckSpec(s.relative, who, "relative");
+}
+
+void WorldConfig::Validate() const {
+  Require(!vehicles.empty(), "[World] at least one vehicle is required");
+  Require(physics_dt > 0.0 && physics_dt <= 0.01,
+          "[World] physics_dt must be in (0, 0.01] s, got " + std::to_string(physics_dt));
+  Require(autopilot_rate_hz > 0.0 && std::isfinite(autopilot_rate_hz),
+          "[World] autopilot_rate_hz must be > 0, got " + std::to_string(autopilot_rate_hz));
+  Require(motor_time_constant > 0.0,
+          "[World] motor_time_constant must be > 0, got " + std::to_string(motor_time_constant));
+  Require(gravity >= 0.0 && std::isfinite(gravity),
+          "[World] gravity must be >= 0, got " + std::to_string(gravity));
+  Require(drag_coefficient.allFinite() && (drag_coefficient.array() >= 0.0).all(),
+          "[World] drag_coefficient must be >= 0");
+  const BatterySettings& b = battery;
+  Require(b.full_voltage > b.empty_voltage && b.empty_voltage > 0.0,
+          "[World] battery needs full_voltage > empty_voltage > 0, got " +
+              std::to_string(b.full_voltage) + " and " + std::to_string(b.empty_voltage));
+  Require(b.capacity_ah > 0.0,
+          "[World] battery capacity_ah must be > 0, got " + std::to_string(b.capacity_ah));
+  Require(b.internal_resistance >= 0.0, "[World] battery internal_resistance must be >= 0, got " +
+                                            std::to_string(b.internal_resistance));
+  Require(b.efficiency > 0.0 && b.efficiency <= 1.0,
+          "[World] battery efficiency must be in (0, 1], got " + std::to_string(b.efficiency));
+  Require(b.initial_soc > 0.0 && b.initial_soc <= 1.0,
+          "[World] battery initial_soc must be in (0, 1], got " + std::to_string(b.initial_soc));
+  downwash.Validate();
+  Require(wind.velocity.allFinite(), "[World] wind velocity must be finite");
+  Require(wind.gust_std >= 0.0,
+          "[World] wind gust_std must be >= 0, got " + std::to_string(wind.gust_std));
+  Require(wind.gust_time_constant > 0.0, "[World] wind gust_time_constant must be > 0, got " +
+                                             std::to_string(wind.gust_time_constant));
+  for (std::size_t i = 0; i < vehicles.size(); ++i) {
+    const std::string who = "vehicle " + std::to_string(i);
+    const VehicleSpec& v = vehicles[i];
+    try {
+      v.params.Validate();
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("[World] " + who + ": " + e.what());
+    }
+    Require(v.position.allFinite() && std::isfinite(v.yaw),
+            "[World] " + who + ": initial position and yaw must be finite");
+    Require(!ground || v.position.z() >= World::kRestHeight - 1e-3,
+            "[World] " + who + ": initial z must be >= World::kRestHeight (" +
+                Num(World::kRestHeight) + " m, resting on the ground), got " + Num(v.position.z()));
+    Require(
+        std::isnan(v.initial_throttle) || (v.initial_throttle >= 0.0 && v.initial_throttle <= 1.0),
+        "[World] " + who + ": initial_throttle must be NaN or in [0, 1], got " +
+            std::to_string(v.initial_throttle));
+    ValidateSensors(v.sensors, who);
+  }
+}
+
+std::string World::BuildMjcf(const WorldConfig& c) {
+  std::ostringstream x;
+  x << "<mujoco model=\"fnmpc_world\">\n"
+    << "  <compiler autolimits=\"true\" angle=\"radian\"/>\n"
+    << "  <option timestep=\"" << Num(c.physics_dt) << "\" gravity=\"0 0 " << Num(-c.gravity)
+    << "\" integrator=\"Euler\"/>\n"
+    << "  <default><geom friction=\"1 0.005 0.0001\" rgba=\"0.6 0.6 0.6 1\"/></default>\n"
+    << "  <worldbody>\n";
+  if (c.ground) {
+    x << "    <geom name=\"ground\" type=\"plane\" size=\"100 100 0.1\"/>\n";
+  }
+  for (std::size_t i = 0; i < c.vehicles.size(); ++i) {
+    const VehicleSpec& v = c.vehicles[i];
+    const model::VehicleParams& p = v.params;
+    const std::string n = "vehicle" + std::to_string(i);
+    const double a = p.arm_length / std::sqrt(2.0);
+    x << "    <body name=\"" << n << "\" pos=\"" << Num(v.position.x()) << " "
+      << Num(v.position.y()) << " " << Num(v.position.z()) << "\" quat=\""
+      << Num(std::cos(v.yaw / 2)) << " 0 0 " << Num(std::sin(v.yaw / 2)) << "\">\n"
+      << "      <freejoint name=\"" << n << "_free\"/>\n"
+      << "      <inertial pos=\"0 0 0\" mass=\"" << Num(p.mass) << "\" diaginertia=\""
+      << Num(p.inertia.x()) << " " << Num(p.inertia.y()) << " " << Num(p.inertia.z()) << "\"/>\n"
+      << "      <geom name=\"" << n << "_hub\" type=\"box\" size=\"" << kHubHalfSize << " "
+      << kHubHalfSize << " " << kHubHalfHeight << "\"/>\n";
+    const std::array<std::array<double, 2>, 4> xy{{{a, -a}, {-a, a}, {a, a}, {-a, -a}}};
+    for (int r = 0; r < 4; ++r) {
+      const std::string px = Num(xy[r][0]), py = Num(xy[r][1]);
+      x << "      <geom name=\"" << n << "_arm" << r
+        << "\" type=\"capsule\" contype=\"0\" conaffinity=\"0\" size=\"0.01\" fromto=\"0 0 0 " << px
+        << " " << py << " 0\"/>\n"
+        << "      <geom name=\"" << n << "_rotor" << r
+        << "\" type=\"cylinder\" contype=\"0\" conaffinity=\"0\" size=\"0.127 0.003\" pos=\"" << px
+        << " " << py << " 0.03\" rgba=\"" << (r < 2 ? "0.2 0.4 0.9" : "0.9 0.3 0.2") << " 0.4\"/>\n"
+        << "      <geom name=\"" << n << "_foot" << r << "\" type=\"sphere\" size=\"" << kFootRadius
+        << "\" pos=\"" << px << " " << py << " " << Num(kFootZ) << "\"/>\n"
+        << "      <site name=\"" << n << "_rotor" << r << "\" pos=\"" << px << " " << py
+        << " 0.03\"/>\n";
+    }
+    x << "    </body>\n";
+  }
+  x << "  </worldbody>\n</mujoco>\n";
+  return x.str();
+}
+
+/// Per-vehicle simulation state (workspace).
+struct Vehicle {
+  model::VehicleParams params;
+  SensorsConfig sensors;
+  int body = -1, qpos = -1, qvel = -1;
+  std::array<Vec3, 4> rotor_b;   // rotor centres, body frame [m]
+  std::array<double, 4> spin{};  // +1 CCW, -1 CW (seen from above)
+  Eigen::Matrix4d mix_inv;       // [T, tau_x, tau_y, tau_z] -> rotor thrusts
+  bool direct = false;
+  AttitudeCommand command;
+  Vec4 throttle = Vec4::Zero();
+  Vec4 rpm = Vec4::Zero();
+  Vec4 rpm_target = Vec4::Zero();
+  Vec4 thrust_guess = Vec4::Constant(3.0);
+  double fmax_guess = 10.0;
+  double voltage = 0.0, soc = 1.0, current = 0.0;
+  Vec3 v_prev = Vec3::Zero();
+  Vec3 accel = Vec3::Zero();
+  Vec3 aero_force = Vec3::Zero(), aero_torque = Vec3::Zero();
+  std::array<std::int64_t, kNumSensorKinds> sample_index{};
+  std::mt19937_64 rng;
+  std::normal_distribution<double> normal{0.0, 1.0};
+  std::uniform_real_distribution<double> uniform{0.0, 1.0};
+};
+
+struct World::Impl {
+  WorldConfig config;
+  std::string xml;
+  mjModel* m = nullptr;
+  mjData* d = nullptr;
+  std::vector<Vehicle> vehicles;
+  std::int64_t step = 0;
+  std::int64_t autopilot_index = 0;
+  double motor_alpha = 0.0;
+  Vec3 gust = Vec3::Zero();
+  std::mt19937_64 gust_rng;
+  std::normal_distribution<double> gust_normal{0.0, 1.0};
+  std::vector<Queued> queue;  // binary heap, see Later()
+  std::uint64_t seq = 0;
+  // Per-step scratch, sized at construction.
+  std::vector<Mat3> rot;
+  std::vector<double> total_thrust;
+
+  ~Impl() {
+    if (d != nullptr) mj_deleteData(d);
+    if (m != nullptr) mj_deleteModel(m);
+  }
+
+  [[nodiscard]] double Time() const { return static_cast<double>(step) * config.physics_dt; }
+
+  [[nodiscard]] Mat3 Rotation(const Vehicle& v) const {
+    const double* q = d->qpos + v.qpos + 3;
+    return Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized().toRotationMatrix();
+  }
+  [[nodiscard]] Vec3 Position(const Vehicle& v) const {
+    return Eigen::Map<const Vec3>(d->qpos + v.qpos);
+  }
+  [[nodiscard]] Vec3 Velocity(const Vehicle& v) const {
+    return Eigen::Map<const Vec3>(d->qvel + v.qvel);
+  }
+  [[nodiscard]] Vec3 Rates(const Vehicle& v) const {
+    return Eigen::Map<const Vec3>(d->qvel + v.qvel + 3);
+  }
+
+  void Load() {
+    auto vfs = std::make_unique<mjVFS>();  // ~2 MB: never on the stack
+    mj_defaultVFS(vfs.get());
+    const char* name = "fnmpc_world.xml";
+    if (mj_makeEmptyFileVFS(vfs.get(), name, static_cast<int>(xml.size())) != 0) {
+      throw std::runtime_error("[World] cannot create the in-memory MJCF file");
+    }
+    const int idx = mj_findFileVFS(vfs.get(), name);
+    std::memcpy(vfs->filedata[idx], xml.data(), xml.size());
+    std::array<char, 1000> err{};
+    m = mj_loadXML(name, vfs.get(), err.data(), static_cast<int>(err.size()));
+    mj_deleteVFS(vfs.get());
+    if (m == nullptr) throw std::runtime_error(std::string("[World] MuJoCo: ") + err.data());
+    d = mj_makeData(m);
+    if (d == nullptr) throw std::runtime_error("[World] mj_makeData failed");
+  }
+
+  void Autopilot(Vehicle& v) {
+    const model::VehicleParams& p = v.params;
+    const double volt = v.voltage;
+    Vec4 f_ss;
+    if (!v.direct && !(v.command.thrust > 0.0)) {
+      // Zero thrust command: the autopilot idles the motors (as a disarmed vehicle).
+      v.throttle.setZero();
+      f_ss.setZero();
+    } else if (v.direct) {
+      for (int r = 0; r < 4; ++r) {
+        f_ss[r] = ThrustForThrottle(p.throttle, v.throttle[r], volt, &v.thrust_guess[r]);
+      }
+    } else {
+      const Mat3 rot_wb = Rotation(v);
+      const Vec3 eul = EulerOf(rot_wb);
+      const Vec3 w = Rates(v);
+      const AttitudeCommand& c = v.command;
+      const Vec3 k = p.attitude_gain;
+      Vec3 e(k.x() * (c.roll + p.bias.roll) - eul.x(), k.y() * (c.pitch + p.bias.pitch) - eul.y(),
+             WrapAngle(k.z() * c.yaw - eul.z()));
+      const Vec3 torque =
+          p.inertia.cwiseProduct(p.attitude_kp.cwiseProduct(e) - p.attitude_kd.cwiseProduct(w));
+      const double thrust = std::max(0.0, p.bias.thrust_scale * c.thrust);
+      const Vec4 f_base = v.mix_inv * Vec4(thrust, torque.x(), torque.y(), 0.0);
+      const Vec4 f_yaw = v.mix_inv.col(3) * torque.z();
+      double fmax = ThrustForThrottle(p.throttle, 1.0, volt, &v.fmax_guess);
+      if (!(fmax > 0.0)) fmax = kInf;
+      // Roll, pitch and thrust first: shrink the yaw part until every rotor fits.
+      double alpha = 1.0;
+      for (int r = 0; r < 4; ++r) {
+        const double val = f_base[r] + f_yaw[r];
+        if (f_yaw[r] < 0.0 && val < 0.0)
+          alpha = std::min(alpha, std::max(0.0, -f_base[r] / f_yaw[r]));
+        if (f_yaw[r] > 0.0 && val > fmax) {
+          alpha = std::min(alpha, std::max(0.0, (fmax - f_base[r]) / f_yaw[r]));
+        }
+      }
+      for (int r = 0; r < 4; ++r) {
+        const double f = std::clamp(f_base[r] + alpha * f_yaw[r], 0.0, fmax);
+        double thr = f > 0.0 ? p.throttle.Throttle(f, volt) : 0.0;
+        if (thr >= 0.0 && thr <= 1.0) {
+          f_ss[r] = f;
+        } else {
+          thr = std::clamp(thr, 0.0, 1.0);
+          f_ss[r] = ThrustForThrottle(p.throttle, thr, volt, &v.thrust_guess[r]);
+        }
+        v.throttle[r] = thr;
+      }
+    }
+    for (int r = 0; r < 4; ++r)
+      v.rpm_target[r] = std::sqrt(std::max(0.0, f_ss[r]) / p.thrust_constant);
+  }
+
+  void Push(const Measurement& meas) {
+    queue.push_back({meas, seq++});
+    std::push_heap(queue.begin(), queue.end(), Later);
+  }
+
+  void Sample(int vi, double t) {
+    Vehicle& v = vehicles[vi];
+    for (int kind = 0; kind < kNumSensorKinds; ++kind) {
+      const SensorSpec& s = SpecOf(v.sensors, kind);
+      if (!s.enabled) continue;
+      std::int64_t& idx = v.sample_index[kind];
+      if (t + kTimeEps < static_cast<double>(idx) / s.rate_hz) continue;
+      do {
+        ++idx;
+      } while (static_cast<double>(idx) / s.rate_hz <= t + kTimeEps);
+      const Mat3 rot_wb = rot[vi];
+      Measurement meas;
+      meas.kind = static_cast<SensorKind>(kind);
+      meas.vehicle = vi;
+      meas.stamp = t;
+      meas.arrival = t + s.latency_s;
+      auto noise3 = [&](const Vec3& sd) {
+        return Vec3(sd.x() * v.normal(v.rng), sd.y() * v.normal(v.rng), sd.z() * v.normal(v.rng));
+      };
+      if (meas.kind == SensorKind::kRelative) {
+        const Vec3 p_obs = Position(v);
+        const double yaw_obs = EulerOf(rot_wb).z();
+        for (int j = 0; j < static_cast<int>(vehicles.size()); ++j) {
+          if (j == vi) continue;
+          const Vec3 d_b = rot_wb.transpose() * (Position(vehicles[j]) - p_obs);
+          const double range = d_b.norm();
+          if (range > s.max_range || range <= 0.0) continue;
+          if (s.field_of_view < 2.0 * M_PI &&
+              std::acos(std::clamp(d_b.x() / range, -1.0, 1.0)) > 0.5 * s.field_of_view) {
+            continue;
+          }
+          if (v.uniform(v.rng) < s.dropout_probability) continue;
+          RelativeObservation& o = meas.relative;
+          o.target = j;
+          o.range = range + s.noise.x() * (1.0 + s.range_noise_growth * range) * v.normal(v.rng);
+          o.bearing = WrapAngle(std::atan2(d_b.y(), d_b.x()) + s.noise.y() * v.normal(v.rng));
+          o.elevation = std::clamp(std::asin(d_b.z() / range) + s.noise.z() * v.normal(v.rng),
+                                   -M_PI / 2, M_PI / 2);
+          o.relative_yaw =
+              WrapAngle(EulerOf(rot[j]).z() - yaw_obs + s.noise2.x() * v.normal(v.rng));
+          Push(meas);
+        }
+        continue;
+      }
+      if (v.uniform(v.rng) < s.dropout_probability) continue;
+      switch (meas.kind) {
+        case SensorKind::kMocapPose: {
+          meas.position = Position(v) + noise3(s.noise);
+          Vec3 e = EulerOf(rot_wb) + noise3(s.noise2);
+          e.z() = WrapAngle(e.z());
+          meas.euler = e;
+          break;
+        }
+        case SensorKind::kImu: {
+          const Vec3 g(0.0, 0.0, -config.gravity);
+          meas.accel = rot_wb.transpose() * (v.accel - g) + noise3(s.noise);
+          meas.gyro = Rates(v) + noise3(s.noise2);
+          break;
+        }
+        case SensorKind::kOpticalFlow:
+          meas.velocity = Velocity(v) + noise3(s.noise);
+          break;
+        case SensorKind::kCompass:
+          meas.yaw = WrapAngle(EulerOf(rot_wb).z() + s.noise.x() * v.normal(v.rng));
+          break;
+        case SensorKind::kBattery:
+          meas.voltage = v.voltage + s.noise.x() * v.normal(v.rng);
+          break;
+        case SensorKind::kRelative:
+          break;
+      }
+      Push(meas);
+    }
+  }
+
+  void UpdateBattery(Vehicle& v) {
+    const BatterySettings& b = config.battery;
+    double power = 0.0;
+    for (int r = 0; r < 4; ++r) {
+      power += v.params.torque_constant * v.rpm[r] * v.rpm[r] * v.rpm[r] * kRpmToRadPerSec;
+    }
+    v.current = power / (b.efficiency * std::max(v.voltage, 1e-3));
+    if (b.fixed_voltage) {
+      v.voltage = b.full_voltage;
+      return;
+    }
+    v.soc = std::max(0.0, v.soc - v.current * config.physics_dt / (3600.0 * b.capacity_ah));
+    v.voltage = b.empty_voltage + (b.full_voltage - b.empty_voltage) * v.soc -
+                b.internal_resistance * v.current;
+    v.voltage = std::max(v.voltage, 0.1 * b.empty_voltage);
+  }
+
+  void ApplyAero() {
+    const DownwashSettings& dw = config.downwash;
+    const WindSettings& wind = config.wind;
+    const Vec3 c_rotor = 0.25 * config.drag_coefficient;  // drag split over the 4 rotor points
+    const int n = static_cast<int>(vehicles.size());
+    for (int i = 0; i < n; ++i) {
+      Vehicle& v = vehicles[i];
+      v.aero_force.setZero();
+      v.aero_torque.setZero();
+      const Vec3 pos = Position(v);
+      const Vec3 vel = Velocity(v);
+      for (int r = 0; r < 4; ++r) {
+        const Vec3 arm_w = rot[i] * v.rotor_b[r];
+        const Vec3 point = pos + arm_w;
+        Vec3 air = Vec3::Zero();
+        if (wind.enabled) air += wind.velocity + gust;
+        if (dw.enabled) {
+          for (int j = 0; j < n; ++j) {
+            if (j == i) continue;
+            air +=
+                DownwashVelocity(dw, Position(vehicles[j]), rot[j].col(2), total_thrust[j], point);
+          }
+        }
+        const Vec3 f = QuadraticDrag(rot[i], c_rotor, air - vel);
+        v.aero_force += f;
+        v.aero_torque += arm_w.cross(f);
+      }
+    }
+  }
+
+  void StepOnce() {
+    const double t = Time();
+    const double dt = config.physics_dt;
+    const int n = static_cast<int>(vehicles.size());
+    for (int i = 0; i < n; ++i) rot[i] = Rotation(vehicles[i]);
+    // 1. Autopilot ticks on its own schedule.
+    if (t + kTimeEps >= static_cast<double>(autopilot_index) / config.autopilot_rate_hz) {
+      do {
+        ++autopilot_index;
+      } while (static_cast<double>(autopilot_index) / config.autopilot_rate_hz <= t + kTimeEps);
+      for (auto& v : vehicles) Autopilot(v);
+    }
+    // 2. Sensors sample the state at t.
+    for (int i = 0; i < n; ++i) Sample(i, t);
+    // 3. Motors, battery, propulsion wrench.
+    for (int i = 0; i < n; ++i) {
+      Vehicle& v = vehicles[i];
+      const model::VehicleParams& p = v.params;
+      v.rpm += motor_alpha * (v.rpm_target - v.rpm);
+      UpdateBattery(v);
+      Vec3 torque_b = Vec3::Zero();
+      double thrust = 0.0;
+      for (int r = 0; r < 4; ++r) {
+        const double w2 = v.rpm[r] * v.rpm[r];
+        const double f = p.thrust_constant * w2;
+        thrust += f;
+        torque_b.x() += v.rotor_b[r].y() * f;
+        torque_b.y() -= v.rotor_b[r].x() * f;
+        torque_b.z() -= v.spin[r] * p.torque_constant * w2;
+      }
+      total_thrust[i] = thrust;
+      Eigen::Map<Vec3> force_w(d->xfrc_applied + 6 * v.body);
+      Eigen::Map<Vec3> torque_w(d->xfrc_applied + 6 * v.body + 3);
+      force_w = rot[i].col(2) * thrust;
+      torque_w = rot[i] * torque_b;
+    }
+    // 4. Wind, gusts and downwash.
+    if (config.wind.enabled && config.wind.gust_std > 0.0) {
+      const double phi = std::exp(-dt / config.wind.gust_time_constant);
+      const double sd = config.wind.gust_std * std::sqrt(1.0 - phi * phi);
+      for (int a = 0; a < 3; ++a) gust[a] = phi * gust[a] + sd * gust_normal(gust_rng);
+    }
+    if (config.wind.enabled || config.downwash.enabled) {
+      ApplyAero();
+      for (auto& v : vehicles) {
+        Eigen::Map<Vec3> force_w(d->xfrc_applied + 6 * v.body);
+        Eigen::Map<Vec3> torque_w(d->xfrc_applied + 6 * v.body + 3);
+        force_w += v.aero_force;
+        torque_w += v.aero_torque;
+      }
+    }
+    for (auto& v : vehicles) v.v_prev = Velocity(v);
+    // 5. Physics.
+    mj_step(m, d);
+    ++step;
+    for (auto& v : vehicles) v.accel = (Velocity(v) - v.v_prev) / dt;
+  }
+};
+
+World::World(const WorldConfig& config) : impl_(std::make_unique<Impl>()) {
+  config.Validate();
+  Impl& w = *impl_;
+  w.config = config;
+  w.xml = BuildMjcf(config);
+  w.Load();
+  const int n = static_cast<int>(config.vehicles.size());
+  w.vehicles.resize(n);
+  w.rot.assign(n, Mat3::Identity());
+  w.total_thrust.assign(n, 0.0);
+  w.motor_alpha = 1.0 - std::exp(-config.physics_dt / config.motor_time_constant);
+  std::seed_seq gust_seed{static_cast<std::uint32_t>(config.seed),
+                          static_cast<std::uint32_t>(config.seed >> 32), 0xFFFFu};
+  w.gust_rng.seed(gust_seed);
+  for (int i = 0; i < n; ++i) {
+    const VehicleSpec& spec = config.vehicles[i];
+    Vehicle& v = w.vehicles[i];
+    v.params = spec.params;
+    v.sensors = spec.sensors;
+    const std::string name = "vehicle" + std::to_string(i);
+    v.body = mj_name2id(w.m, mjOBJ_BODY, name.c_str());
+    const int joint = mj_name2id(w.m, mjOBJ_JOINT, (name + "_free").c_str());
+    if (v.body < 0 || joint < 0) throw std::runtime_error("[World] " + name + " not in the model");
+    v.qpos = w.m->jnt_qposadr[joint];
+    v.qvel = w.m->jnt_dofadr[joint];
+    const double a = spec.params.arm_length / std::sqrt(2.0);
+    v.rotor_b = {Vec3(a, -a, 0), Vec3(-a, a, 0), Vec3(a, a, 0), Vec3(-a, -a, 0)};
+    v.spin = {1.0, 1.0, -1.0, -1.0};
+    const double ratio = spec.params.torque_constant / spec.params.thrust_constant;
+    Eigen::Matrix4d mix;
+    for (int r = 0; r < 4; ++r) {
+      mix.col(r) << 1.0, v.rotor_b[r].y(), -v.rotor_b[r].x(), -v.spin[r] * ratio;
+    }
+    v.mix_inv = mix.inverse();
+    v.voltage = config.battery.full_voltage;
+    v.soc = config.battery.fixed_voltage ? 1.0 : config.battery.initial_soc;
+    if (!config.battery.fixed_voltage) {
+      v.voltage = config.battery.empty_voltage +
+                  (config.battery.full_voltage - config.battery.empty_voltage) * v.soc;
+    }
+    std::seed_seq seed{static_cast<std::uint32_t>(config.seed),
+                       static_cast<std::uint32_t>(config.seed >> 32),
+                       static_cast<std::uint32_t>(i)};
+    v.rng.seed(seed);
+    if (std::isfinite(spec.initial_throttle)) {
+      v.direct = true;
+      v.throttle.setConstant(spec.initial_throttle);
+      w.Autopilot(v);
+      v.rpm = v.rpm_target;
+    } else {
+      v.command.yaw = spec.yaw;
+    }
+  }
+  w.queue.reserve(static_cast<std::size_t>(256 * n * (n + 6)));
+  mj_forward(w.m, w.d);
+}
+
+World::~World() = default;
+
+namespace {
+void CheckIndex(int vehicle, int n) {
+  if (vehicle < 0 || vehicle >= n) {
+    throw std::invalid_argument("[World] vehicle index out of range, got " +
+                                std::to_string(vehicle) + " with " + std::to_string(n) +
+                                " vehicles");
+  }
+}
+}  // namespace
+
+void World::SetCommand(int vehicle, const AttitudeCommand& command) {
+  CheckIndex(vehicle, num_vehicles());
+  Vehicle& v = impl_->vehicles[vehicle];
+  v.direct = false;
+  v.command = command;
+}
+
+void World::SetThrottles(int vehicle, const Vec4& throttles) {
+  CheckIndex(vehicle, num_vehicles());
+  Vehicle& v = impl_->vehicles[vehicle];
+  v.direct = true;
+  v.throttle = throttles.cwiseMax(0.0).cwiseMin(1.0);
+}
+
+void World::SetPose(int vehicle, const Vec3& position, const Vec3& euler) {
+  SetState(vehicle, position, euler, Vec3::Zero(), Vec3::Zero());
+}
+
+void World::SetState(int vehicle, const Vec3& position, const Vec3& euler, const Vec3& velocity,
+                     const Vec3& body_rates) {
+  CheckIndex(vehicle, num_vehicles());
+  Impl& w = *impl_;
+  Vehicle& v = w.vehicles[vehicle];
+  const Eigen::Quaterniond q(RotationZyx(euler.x(), euler.y(), euler.z()));
+  double* qpos = w.d->qpos + v.qpos;
+  qpos[0] = position.x();
+  qpos[1] = position.y();
+  qpos[2] = position.z();
+  qpos[3] = q.w();
+  qpos[4] = q.x();
+  qpos[5] = q.y();
+  qpos[6] = q.z();
+  Eigen::Map<Vec3> lin(w.d->qvel + v.qvel);
+  Eigen::Map<Vec3> ang(w.d->qvel + v.qvel + 3);
+  lin = velocity;
+  ang = body_rates;
+  v.v_prev = velocity;
+  v.accel.setZero();
+  mj_forward(w.m, w.d);
+}
+
+void World::Step(double duration) {
+  if (!(duration >= 0.0) || !std::isfinite(duration)) {
+    throw std::invalid_argument("[World] Step duration must be finite and >= 0, got " +
+                                std::to_string(duration));
+  }
+  const auto n = static_cast<std::int64_t>(std::llround(duration / impl_->config.physics_dt));
+  for (std::int64_t k = 0; k < n; ++k) impl_->StepOnce();
+}
+
+void World::StepOnce() { impl_->StepOnce(); }
+
+bool World::PopMeasurement(Measurement* out) {
+  auto& q = impl_->queue;
+  if (q.empty() || q.front().m.arrival > impl_->Time() + kTimeEps) return false;
+  std::pop_heap(q.begin(), q.end(), Later);
+  *out = q.back().m;
+  q.pop_back();
+  return true;
+}
+
+std::size_t World::queued_measurements() const { return impl_->queue.size(); }
+
+TrueState World::GetTrueState(int vehicle) const {
+  CheckIndex(vehicle, num_vehicles());
+  const Impl& w = *impl_;
+  const Vehicle& v = w.vehicles[vehicle];
+  TrueState s;
+  s.position = w.Position(v);
+  s.velocity = w.Velocity(v);
+  s.euler = EulerOf(w.Rotation(v));
+  s.body_rates = w.Rates(v);
+  s.acceleration = v.accel;
+  s.rotor_rpm = v.rpm;
+  s.throttle = v.throttle;
+  s.thrust = v.params.thrust_constant * v.rpm.squaredNorm();
+  s.voltage = v.voltage;
+  s.soc = v.soc;
+  s.current = v.current;
+  s.aero_force = v.aero_force;
+  s.aero_torque = v.aero_torque;
+  return s;
+}
+
+double World::time() const { return impl_->Time(); }
+double World::physics_dt() const { return impl_->config.physics_dt; }
+int World::num_vehicles() const { return static_cast<int>(impl_->vehicles.size()); }
+const std::string& World::model_xml() const { return impl_->xml; }
+
+}  // namespace fnmpc::sim

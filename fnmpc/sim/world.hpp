@@ -1,0 +1,159 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "fnmpc/core/sensors.hpp"
+#include "fnmpc/core/types.hpp"
+#include "fnmpc/model/vehicle_params.hpp"
+#include "fnmpc/sim/downwash.hpp"
+
+/// High-fidelity multi-vehicle simulator on MuJoCo (the only layer that includes MuJoCo;
+/// mujoco.h stays inside world.cpp). Frames: world ENU z up; body x forward, y left, z up;
+/// Euler ZYX (roll, pitch, yaw). See docs/simulator.md for every model and its units.
+namespace fnmpc::sim {
+
+using Vec4 = Eigen::Vector4d;
+
+/// Reference for the emulated autopilot: total thrust and absolute Euler angles.
+struct AttitudeCommand {
+  double thrust = 0.0;  ///< total commanded thrust [N]
+  double roll = 0.0;    ///< [rad]
+  double pitch = 0.0;   ///< [rad]
+  double yaw = 0.0;     ///< absolute yaw angle [rad]
+};
+
+/// One vehicle of the world.
+struct VehicleSpec {
+  model::VehicleParams params;  ///< physical and identified parameters (vehicle file)
+  /// Initial position of the centre of mass [m]. On the ground it rests at z = kRestHeight.
+  Vec3 position{0.0, 0.0, 0.1};
+  double yaw = 0.0;       ///< initial yaw [rad]; roll and pitch start at zero
+  SensorsConfig sensors;  ///< rates, latencies, noise, dropout (sensors YAML)
+  /// When finite: the vehicle starts in direct-throttle mode with these throttles on all
+  /// four rotors and the rotors already at their steady-state speed (e.g. start in hover).
+  double initial_throttle = kNaN;
+};
+
+/// Battery: open-circuit voltage linear in the state of charge, series resistance.
+/// V = V_empty + (V_full - V_empty) soc - R I, I = P_mech / (efficiency V),
+/// P_mech = sum over rotors of T_q rpm^2 omega, d soc / dt = -I / (3600 capacity).
+struct BatterySettings {
+  bool fixed_voltage = false;          ///< true: the voltage stays at full_voltage (no sag)
+  double full_voltage = 16.8;          ///< [V] (4S LiPo, 4.2 V per cell)
+  double empty_voltage = 13.2;         ///< [V] open-circuit voltage at soc = 0
+  double capacity_ah = 5.2;            ///< [A h]
+  double internal_resistance = 0.025;  ///< [Ohm]
+  double efficiency = 0.7;             ///< electrical to shaft power [-]
+  double initial_soc = 1.0;            ///< state of charge at t = 0, in (0, 1]
+};
+
+/// Constant wind plus gusts: the gust is a first-order Gauss-Markov (Ornstein-Uhlenbeck)
+/// process per axis, uniform in space, with stationary standard deviation gust_std.
+struct WindSettings {
+  bool enabled = false;
+  Vec3 velocity = Vec3::Zero();     ///< constant wind, world frame [m/s]
+  double gust_std = 0.0;            ///< [m/s], >= 0
+  double gust_time_constant = 2.0;  ///< correlation time [s], > 0
+};
+
+/// Everything the world is built from.
+struct WorldConfig {
+  std::vector<VehicleSpec> vehicles;
+  double physics_dt = 0.001;          ///< MuJoCo time step [s]
+  double autopilot_rate_hz = 250.0;   ///< attitude controller rate [Hz]
+  double motor_time_constant = 0.02;  ///< first-order rotor speed lag [s]
+  double gravity = kGravity;          ///< [m/s^2], along -z; 0 for a free body
+  bool ground = true;                 ///< ground plane with contact at z = 0
+  /// Body-axis quadratic drag coefficients [N s^2/m^2] (wind, gusts and downwash).
+  Vec3 drag_coefficient{0.03, 0.03, 0.05};
+  BatterySettings battery;
+  DownwashSettings downwash;
+  WindSettings wind;
+  std::uint64_t seed = 1;  ///< all noise, dropouts and gusts derive from it
+
+  /// Throws std::invalid_argument with context on a bad value (also checks each
+  /// vehicle's params and sensors).
+  void Validate() const;
+};
+
+/// Ground truth of one vehicle.
+struct TrueState {
+  Vec3 position = Vec3::Constant(kNaN);      ///< centre of mass, world [m]
+  Vec3 velocity = Vec3::Constant(kNaN);      ///< world [m/s]
+  Vec3 euler = Vec3::Constant(kNaN);         ///< roll, pitch, yaw [rad]
+  Vec3 body_rates = Vec3::Constant(kNaN);    ///< angular velocity in the body frame [rad/s]
+  Vec3 acceleration = Vec3::Constant(kNaN);  ///< world, over the last step [m/s^2]
+  Vec4 rotor_rpm = Vec4::Constant(kNaN);     ///< [rpm]
+  Vec4 throttle = Vec4::Constant(kNaN);      ///< applied throttles in [0, 1]
+  double thrust = kNaN;                      ///< total rotor thrust [N]
+  double voltage = kNaN;                     ///< battery terminal voltage [V]
+  double soc = kNaN;                         ///< battery state of charge [-]
+  double current = kNaN;                     ///< battery current [A]
+  Vec3 aero_force = Vec3::Zero();            ///< wind + downwash force, world [N]
+  Vec3 aero_torque = Vec3::Zero();           ///< wind + downwash torque about the CoM, world [N m]
+};
+
+/// Settings checks shared with the World constructor: throws std::invalid_argument naming
+/// `who` (e.g. "vehicle 2") and the sensor on a rate <= 0, latency < 0, dropout outside
+/// [0, 1), negative noise or non-positive range / field of view.
+void ValidateSensors(const SensorsConfig& sensors, const std::string& who);
+
+/// Multi-quadrotor world. Rotors are numbered in X configuration: 0 front right (CCW seen
+/// from above), 1 rear left (CCW), 2 front left (CW), 3 rear right (CW).
+class World {
+ public:
+  /// Height of the centre of mass of a vehicle resting on its landing gear [m].
+  static constexpr double kRestHeight = 0.1;
+
+  /// Builds the MJCF model and allocates every buffer. Throws std::invalid_argument on a
+  /// bad configuration and std::runtime_error if MuJoCo rejects the model.
+  explicit World(const WorldConfig& config);
+  ~World();
+  World(const World&) = delete;
+  World& operator=(const World&) = delete;
+
+  /// Sets the autopilot reference of `vehicle` (switches it to attitude mode).
+  void SetCommand(int vehicle, const AttitudeCommand& command);
+  /// Bypasses the autopilot: the four throttles (clamped to [0, 1]) go straight to the ESCs.
+  void SetThrottles(int vehicle, const Vec4& throttles);
+  /// Teleports `vehicle` (CoM position [m], Euler [rad]) with zero velocity; for tests
+  /// and scenario resets. Rotor speeds and battery are kept.
+  void SetPose(int vehicle, const Vec3& position, const Vec3& euler);
+  /// Like SetPose, with the world-frame velocity [m/s] and body rates [rad/s] given.
+  void SetState(int vehicle, const Vec3& position, const Vec3& euler, const Vec3& velocity,
+                const Vec3& body_rates);
+
+  /// Advances round(duration / physics_dt) physics steps (duration >= 0) [s].
+  void Step(double duration);
+  /// Advances exactly one physics step.
+  void StepOnce();
+
+  /// Pops the earliest delivered measurement (arrival <= time()), in arrival order
+  /// (ties: stamp, then generation order). Returns false when none is due.
+  bool PopMeasurement(Measurement* out);
+  /// Measurements generated but not yet popped (delivered or still in flight).
+  [[nodiscard]] std::size_t queued_measurements() const;
+
+  /// Ground truth of `vehicle` at time().
+  [[nodiscard]] TrueState GetTrueState(int vehicle) const;
+  /// Simulation time [s].
+  [[nodiscard]] double time() const;
+  [[nodiscard]] double physics_dt() const;
+  [[nodiscard]] int num_vehicles() const;
+  /// The generated MJCF text (for inspection and the docs).
+  [[nodiscard]] const std::string& model_xml() const;
+
+  /// Builds the MJCF text of a world without loading it (pure function).
+  static std::string BuildMjcf(const WorldConfig& config);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace fnmpc::sim
