@@ -1,0 +1,79 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <array>
+#include <cmath>
+
+#include "fnmpc/core/types.hpp"
+#include "fnmpc/estimation/ekf_types.hpp"
+
+/// Small numerical helpers of the estimators: chi-square quantiles for the gates, the
+/// partial derivatives of the ZYX rotation, and the Joseph-form Kalman update.
+namespace fnmpc::estimation {
+
+/// Survival function P[X > x] of a chi-square variable with `dof` degrees of freedom
+/// (closed form for integer dof; accurate for dof <= 200, Wilson-Hilferty beyond).
+double Chi2Survival(double x, int dof);
+
+/// Quantile x with P[X <= x] = p of a chi-square variable with `dof` degrees of freedom.
+/// Throws std::invalid_argument unless 0 < p < 1 and dof >= 1 (setup-time use).
+double Chi2Quantile(double p, int dof);
+
+/// R = Rz(psi) Ry(theta) Rx(phi) and its partial derivatives dR[i] = dR / d euler[i],
+/// euler = (phi, theta, psi) [rad].
+void RotationZyxPartials(const Vec3& euler, Mat3* R, std::array<Mat3, 3>* dR);
+
+/// Makes P exactly symmetric: P = (P + P') / 2.
+template <int N>
+void Symmetrize(Mat<N, N>* P) {
+  *P = 0.5 * (*P + P->transpose()).eval();
+}
+
+/// Result of one Kalman update.
+struct UpdateResult {
+  EkfStatus status = EkfStatus::kAccepted;  ///< kAccepted, kRejectedGated or kNumericalError
+  double nis = kNaN;                        ///< normalised innovation squared y' S^-1 y [-]
+};
+
+/// Joseph-form EKF update x += K y, P = (I-KH) P (I-KH)' + K R K' with innovation y
+/// (dim M), Jacobian H (M x N) and noise R (M x M). Rejects (state untouched) when the NIS
+/// exceeds `gate` (pass kInf to disable) or when S is not positive definite. Fixed-size:
+/// no heap allocation.
+template <int N, int M>
+UpdateResult KalmanUpdate(const Vec<M>& y, const Mat<M, N>& H, const Mat<M, M>& R, double gate,
+                          Vec<N>* x, Mat<N, N>* P) {
+  UpdateResult r;
+  const Mat<M, N> HP = H * (*P);
+  Mat<M, M> S = HP * H.transpose() + R;
+  Symmetrize<M>(&S);
+  const Eigen::LLT<Mat<M, M>> llt(S);
+  if (llt.info() != Eigen::Success || !y.allFinite()) {
+    r.status = EkfStatus::kNumericalError;
+    return r;
+  }
+  r.nis = y.dot(llt.solve(y));
+  if (!std::isfinite(r.nis)) {
+    r.status = EkfStatus::kNumericalError;
+    return r;
+  }
+  if (r.nis > gate) {
+    r.status = EkfStatus::kRejectedGated;
+    return r;
+  }
+  const Mat<N, M> K = llt.solve(HP).transpose();
+  const Mat<N, N> IKH = Mat<N, N>::Identity() - K * H;
+  const Vec<N> x_new = *x + K * y;
+  Mat<N, N> P_new = IKH * (*P) * IKH.transpose() + K * R * K.transpose();
+  Symmetrize<N>(&P_new);
+  if (!x_new.allFinite() || !P_new.allFinite() || (P_new.diagonal().array() <= 0.0).any()) {
+    r.status = EkfStatus::kNumericalError;
+    return r;
+  }
+  *x = x_new;
+  *P = P_new;
+  return r;
+}
+
+}  // namespace fnmpc::estimation

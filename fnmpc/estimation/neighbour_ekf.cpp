@@ -1,0 +1,306 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "fnmpc/estimation/neighbour_ekf.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "fnmpc/core/rotation.hpp"
+#include "fnmpc/estimation/ekf_math.hpp"
+
+namespace fnmpc::estimation {
+namespace {
+
+using Idx = NeighbourStateIndex;
+constexpr int kN = Idx::kSize;
+
+void Require(bool ok, const char* field, double value, const char* what) {
+  if (!ok) {
+    throw std::invalid_argument(std::string("[NeighbourEkfConfig] ") + field + " " + what +
+                                ", got " + std::to_string(value));
+  }
+}
+
+// d h_{range, bearing, elevation} / d d_B, d_B the offset in the observer body frame.
+Mat3 SphericalJacobian(const Vec3& d) {
+  const double rho2 = d.x() * d.x() + d.y() * d.y();
+  const double rho = std::sqrt(rho2);
+  const double r2 = rho2 + d.z() * d.z();
+  const double r = std::sqrt(r2);
+  Mat3 J;
+  J.row(0) = d.transpose() / r;
+  J.row(1) << -d.y() / rho2, d.x() / rho2, 0.0;
+  J.row(2) << -d.x() * d.z() / (rho * r2), -d.y() * d.z() / (rho * r2), rho / r2;
+  return J;
+}
+
+}  // namespace
+
+void NeighbourEkfConfig::Validate() const {
+  Require(max_lag >= 0.0 && std::isfinite(max_lag), "max_lag", max_lag, "must be >= 0");
+  Require(buffer_capacity >= 2, "buffer_capacity", buffer_capacity, "must be >= 2");
+  Require(accel_noise > 0.0, "accel_noise", accel_noise, "must be > 0");
+  Require(yaw_accel_noise > 0.0, "yaw_accel_noise", yaw_accel_noise, "must be > 0");
+  Require(own_velocity_noise >= 0.0, "own_velocity_noise", own_velocity_noise, "must be >= 0");
+  Require(initial_velocity_std > 0.0, "initial_velocity_std", initial_velocity_std, "must be > 0");
+  Require(initial_yaw_rate_std > 0.0, "initial_yaw_rate_std", initial_yaw_rate_std, "must be > 0");
+  Require(gate_probability > 0.0 && gate_probability < 1.0, "gate_probability", gate_probability,
+          "must be in (0, 1)");
+  Require(max_consecutive_gated >= 1, "max_consecutive_gated", max_consecutive_gated,
+          "must be >= 1");
+  const SensorSpec& r = sensors.relative;
+  Require((r.noise.array() > 0.0).all(), "sensors.relative.noise", r.noise.minCoeff(),
+          "must be > 0");
+  Require(r.noise2.x() > 0.0, "sensors.relative.noise2[0]", r.noise2.x(), "must be > 0");
+  Require(r.range_noise_growth >= 0.0, "sensors.relative.range_noise_growth", r.range_noise_growth,
+          "must be >= 0");
+}
+
+Vec<4> RelativeMeasurementModel(const NeighbourStateVec& x, const Vec3& own_euler) {
+  const Vec3 d = RotationZyx(own_euler.x(), own_euler.y(), own_euler.z()).transpose() *
+                 x.segment<3>(Idx::kRelPos);
+  const double r = d.norm();
+  return {r, std::atan2(d.y(), d.x()), std::asin(d.z() / r),
+          WrapAngle(x(Idx::kYaw) - own_euler.z())};
+}
+
+Mat<4, NeighbourStateIndex::kSize> RelativeMeasurementJacobian(const NeighbourStateVec& x,
+                                                               const Vec3& own_euler) {
+  const Mat3 R = RotationZyx(own_euler.x(), own_euler.y(), own_euler.z());
+  const Vec3 d = R.transpose() * x.segment<3>(Idx::kRelPos);
+  Mat<4, kN> H = Mat<4, kN>::Zero();
+  H.block<3, 3>(0, Idx::kRelPos) = SphericalJacobian(d) * R.transpose();
+  H(3, Idx::kYaw) = 1.0;
+  return H;
+}
+
+Mat<4, 3> RelativeMeasurementOwnAttitudeJacobian(const NeighbourStateVec& x,
+                                                 const Vec3& own_euler) {
+  Mat3 R;
+  std::array<Mat3, 3> dR;
+  RotationZyxPartials(own_euler, &R, &dR);
+  const Vec3 dx = x.segment<3>(Idx::kRelPos);
+  Mat3 dd;
+  for (int i = 0; i < 3; ++i) dd.col(i) = dR[static_cast<std::size_t>(i)].transpose() * dx;
+  Mat<4, 3> J = Mat<4, 3>::Zero();
+  J.topRows<3>() = SphericalJacobian(R.transpose() * dx) * dd;
+  J(3, 2) = -1.0;
+  return J;
+}
+
+NeighbourEkf::NeighbourEkf(const NeighbourEkfConfig& config)
+    : config_(config), buffer_((config.Validate(), config.buffer_capacity), config.max_lag) {
+  gate_ = Chi2Quantile(config_.gate_probability, 4);
+  s_.x.setConstant(kNaN);
+}
+
+EkfCounters NeighbourEkf::counters() const {
+  EkfCounters c = counters_;
+  c.replays = buffer_.replays();
+  c.buffer_overflows = buffer_.overflows();
+  c.gate_resets = s_.gate_resets;
+  return c;
+}
+
+NeighbourStateVec NeighbourEkf::state() const {
+  return s_.initialized ? s_.x : NeighbourStateVec::Constant(kNaN);
+}
+
+NeighbourStateVec NeighbourEkf::StateAt(double t, const Vec3& own_velocity) const {
+  if (!s_.initialized) return NeighbourStateVec::Constant(kNaN);
+  State st = s_;
+  Predict(t, own_velocity, &st);
+  return st.x;
+}
+
+EkfStatus NeighbourEkf::PredictTo(double t, const Vec3& own_velocity) {
+  if (!std::isfinite(t) || !own_velocity.allFinite()) {
+    ++counters_.commands_rejected;
+    return EkfStatus::kRejectedNonFinite;
+  }
+  Event e;
+  e.stamp = t;
+  e.order = 0;
+  e.own_velocity = own_velocity;
+  const EkfStatus st = buffer_.Submit(
+      e, &s_, [this](const Event& ev, State* s) { return Apply(ev, s); },
+      [this](const Event& ev, EkfStatus from, EkfStatus to) {
+        if (ev.order == 1) counters_.Move(SensorKind::kRelative, from, to);
+      });
+  if (st == EkfStatus::kAccepted) {
+    ++counters_.commands;
+  } else {
+    ++counters_.commands_rejected;
+  }
+  return st;
+}
+
+EkfStatus NeighbourEkf::Process(const Measurement& m, const Vec3& own_euler,
+                                const Vec3& own_velocity, const Mat3* own_euler_cov) {
+  const auto finish = [&](EkfStatus st) {
+    counters_.Add(SensorKind::kRelative, st);
+    return st;
+  };
+  if (m.kind != SensorKind::kRelative || !config_.sensors.relative.enabled ||
+      (config_.observer >= 0 && m.vehicle != config_.observer) ||
+      (config_.target >= 0 && m.relative.target != config_.target)) {
+    return finish(EkfStatus::kRejectedInvalid);
+  }
+  const RelativeObservation& o = m.relative;
+  if (!std::isfinite(m.stamp) || !std::isfinite(o.range) || !std::isfinite(o.bearing) ||
+      !std::isfinite(o.elevation) || !std::isfinite(o.relative_yaw) || !own_euler.allFinite() ||
+      !own_velocity.allFinite() || (own_euler_cov != nullptr && !own_euler_cov->allFinite())) {
+    return finish(EkfStatus::kRejectedNonFinite);
+  }
+  if (!(o.range > 0.0) || std::abs(o.elevation) > 0.5 * M_PI) {
+    return finish(EkfStatus::kRejectedInvalid);
+  }
+  Event e;
+  e.stamp = m.stamp;
+  e.order = 1;
+  e.m = m;
+  e.own_euler = own_euler;
+  e.own_velocity = own_velocity;
+  if (own_euler_cov != nullptr) e.own_euler_cov = *own_euler_cov;
+  return finish(buffer_.Submit(
+      e, &s_, [this](const Event& ev, State* s) { return Apply(ev, s); },
+      [this](const Event& ev, EkfStatus from, EkfStatus to) {
+        if (ev.order == 1) counters_.Move(SensorKind::kRelative, from, to);
+      }));
+}
+
+void NeighbourEkf::Predict(double t, const Vec3& own_velocity, State* s) const {
+  const Vec3 v_prev = s->own_velocity.allFinite() ? s->own_velocity : own_velocity;
+  if (!s->initialized || !(t > s->time)) {
+    if (!s->initialized || !std::isfinite(s->time) || t >= s->time) {
+      s->time = std::isfinite(s->time) ? std::max(s->time, t) : t;
+      s->own_velocity = own_velocity;
+    }
+    return;
+  }
+  const double h = t - s->time;
+  const Vec3 v_avg = 0.5 * (v_prev + own_velocity);
+  s->x.segment<3>(Idx::kRelPos) += h * (s->x.segment<3>(Idx::kVel) - v_avg);
+  s->x(Idx::kYaw) = WrapAngle(s->x(Idx::kYaw) + h * s->x(Idx::kYawRate));
+  NeighbourStateCov F = NeighbourStateCov::Identity();
+  F.block<3, 3>(Idx::kRelPos, Idx::kVel) = Mat3::Identity() * h;
+  F(Idx::kYaw, Idx::kYawRate) = h;
+  NeighbourStateCov Q = NeighbourStateCov::Zero();
+  const double qa = config_.accel_noise * config_.accel_noise;
+  const double qy = config_.yaw_accel_noise * config_.yaw_accel_noise;
+  const double qo = config_.own_velocity_noise * config_.own_velocity_noise;
+  for (int i = 0; i < 3; ++i) {
+    Q(Idx::kRelPos + i, Idx::kRelPos + i) = qa * h * h * h / 3.0 + qo * h;
+    Q(Idx::kRelPos + i, Idx::kVel + i) = qa * h * h / 2.0;
+    Q(Idx::kVel + i, Idx::kRelPos + i) = qa * h * h / 2.0;
+    Q(Idx::kVel + i, Idx::kVel + i) = qa * h;
+  }
+  Q(Idx::kYaw, Idx::kYaw) = qy * h * h * h / 3.0;
+  Q(Idx::kYaw, Idx::kYawRate) = qy * h * h / 2.0;
+  Q(Idx::kYawRate, Idx::kYaw) = qy * h * h / 2.0;
+  Q(Idx::kYawRate, Idx::kYawRate) = qy * h;
+  s->P = F * s->P * F.transpose() + Q;
+  Symmetrize<kN>(&s->P);
+  s->time = t;
+  s->own_velocity = own_velocity;
+}
+
+Mat<4, 4> NeighbourEkf::NoiseCovariance(const Event& e, const NeighbourStateVec& x) const {
+  const SensorSpec& spec = config_.sensors.relative;
+  const double range = x.segment<3>(Idx::kRelPos).norm();
+  const double sr = spec.noise.x() * (1.0 + spec.range_noise_growth * range);
+  Mat<4, 4> R = Mat<4, 4>::Zero();
+  R.diagonal() << sr * sr, spec.noise.y() * spec.noise.y(), spec.noise.z() * spec.noise.z(),
+      spec.noise2.x() * spec.noise2.x();
+  if (!e.own_euler_cov.isZero(0.0)) {
+    const Mat<4, 3> J = RelativeMeasurementOwnAttitudeJacobian(x, e.own_euler);
+    R += J * e.own_euler_cov * J.transpose();
+  }
+  return R;
+}
+
+void NeighbourEkf::InitFromMeasurement(const Event& e, State* s) const {
+  const RelativeObservation& o = e.m.relative;
+  const double cb = std::cos(o.bearing), sb = std::sin(o.bearing);
+  const double ce = std::cos(o.elevation), se = std::sin(o.elevation);
+  const Vec3 d(o.range * ce * cb, o.range * ce * sb, o.range * se);
+  Mat3 R;
+  std::array<Mat3, 3> dR;
+  RotationZyxPartials(e.own_euler, &R, &dR);
+  const bool keep_motion = s->initialized;  // re-initialisation after repeated gating
+  const Vec3 v = s->x.segment<3>(Idx::kVel);
+  const double wz = s->x(Idx::kYawRate);
+  const Mat3 Pv = s->P.block<3, 3>(Idx::kVel, Idx::kVel);
+  const double Pw = s->P(Idx::kYawRate, Idx::kYawRate);
+  s->x.setZero();
+  s->x.segment<3>(Idx::kRelPos) = R * d;
+  s->x(Idx::kYaw) = WrapAngle(e.own_euler.z() + o.relative_yaw);
+  // Linearised covariance of (dx, psi_j) from the measurement and own-attitude noise.
+  Mat<4, 4> Gz = Mat<4, 4>::Zero();
+  Mat3 Jd;
+  Jd.col(0) << ce * cb, ce * sb, se;
+  Jd.col(1) << -o.range * ce * sb, o.range * ce * cb, 0.0;
+  Jd.col(2) << -o.range * se * cb, -o.range * se * sb, o.range * ce;
+  Gz.topLeftCorner<3, 3>() = R * Jd;
+  Gz(3, 3) = 1.0;
+  Mat<4, 3> Ge = Mat<4, 3>::Zero();
+  for (int i = 0; i < 3; ++i) Ge.block<3, 1>(0, i) = dR[static_cast<std::size_t>(i)] * d;
+  Ge(3, 2) = 1.0;
+  const SensorSpec& spec = config_.sensors.relative;
+  const double sr = spec.noise.x() * (1.0 + spec.range_noise_growth * o.range);
+  Vec<4> var(sr * sr, spec.noise.y() * spec.noise.y(), spec.noise.z() * spec.noise.z(),
+             spec.noise2.x() * spec.noise2.x());
+  const Mat<4, 4> P4 =
+      Gz * var.asDiagonal() * Gz.transpose() + Ge * e.own_euler_cov * Ge.transpose();
+  s->P.setZero();
+  s->P.topLeftCorner<3, 3>() = P4.topLeftCorner<3, 3>();
+  s->P.block<3, 1>(Idx::kRelPos, Idx::kYaw) = P4.block<3, 1>(0, 3);
+  s->P.block<1, 3>(Idx::kYaw, Idx::kRelPos) = P4.block<1, 3>(3, 0);
+  s->P(Idx::kYaw, Idx::kYaw) = P4(3, 3);
+  if (keep_motion) {
+    s->x.segment<3>(Idx::kVel) = v;
+    s->x(Idx::kYawRate) = wz;
+    s->P.block<3, 3>(Idx::kVel, Idx::kVel) = Pv;
+    s->P(Idx::kYawRate, Idx::kYawRate) = Pw;
+  } else {
+    s->P.block<3, 3>(Idx::kVel, Idx::kVel) =
+        Mat3::Identity() * config_.initial_velocity_std * config_.initial_velocity_std;
+    s->P(Idx::kYawRate, Idx::kYawRate) =
+        config_.initial_yaw_rate_std * config_.initial_yaw_rate_std;
+  }
+  Symmetrize<kN>(&s->P);
+  s->initialized = true;
+  s->time = e.stamp;
+  s->own_velocity = e.own_velocity;
+  s->consecutive_gated = 0;
+}
+
+EkfStatus NeighbourEkf::Apply(const Event& e, State* s) const {
+  if (e.order == 0) {
+    Predict(e.stamp, e.own_velocity, s);
+    return EkfStatus::kAccepted;
+  }
+  if (!s->initialized) {
+    InitFromMeasurement(e, s);
+    return EkfStatus::kAccepted;
+  }
+  Predict(e.stamp, e.own_velocity, s);
+  const RelativeObservation& o = e.m.relative;
+  const Vec<4> h = RelativeMeasurementModel(s->x, e.own_euler);
+  Vec<4> y(o.range - h(0), WrapAngle(o.bearing - h(1)), o.elevation - h(2),
+           WrapAngle(o.relative_yaw - h(3)));
+  const Mat<4, kN> H = RelativeMeasurementJacobian(s->x, e.own_euler);
+  const UpdateResult r = KalmanUpdate<kN, 4>(y, H, NoiseCovariance(e, s->x), gate_, &s->x, &s->P);
+  if (r.status == EkfStatus::kAccepted) {
+    s->consecutive_gated = 0;
+    s->x(Idx::kYaw) = WrapAngle(s->x(Idx::kYaw));
+  } else if (r.status == EkfStatus::kRejectedGated &&
+             ++s->consecutive_gated >= config_.max_consecutive_gated) {
+    InitFromMeasurement(e, s);
+    ++s->gate_resets;
+    return EkfStatus::kAccepted;
+  }
+  return r.status;
+}
+
+}  // namespace fnmpc::estimation

@@ -1,0 +1,127 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include "fnmpc/core/sensors.hpp"
+#include "fnmpc/core/types.hpp"
+#include "fnmpc/estimation/ekf_types.hpp"
+#include "fnmpc/estimation/replay_buffer.hpp"
+
+namespace fnmpc::estimation {
+
+/// Per-neighbour state layout shared with the follower NMPC (8 entries), MPC frame {m}
+/// (axes of {n}, origin at the observer's start position):
+///   dx  = p_neighbour - p_self [m] (3), v_j neighbour velocity [m/s] (3),
+///   psi_j neighbour yaw [rad], wz_j neighbour yaw rate [rad/s].
+/// Constant-velocity dynamics: dx' = v_j - v_self, v_j' = 0, psi_j' = wz_j, wz_j' = 0.
+struct NeighbourStateIndex {
+  static constexpr int kRelPos = 0;   ///< dx [m], 3
+  static constexpr int kVel = 3;      ///< v_j [m/s], 3
+  static constexpr int kYaw = 6;      ///< psi_j [rad]
+  static constexpr int kYawRate = 7;  ///< wz_j [rad/s]
+  static constexpr int kSize = 8;
+};
+using NeighbourStateVec = Vec<NeighbourStateIndex::kSize>;
+using NeighbourStateCov = Mat<NeighbourStateIndex::kSize, NeighbourStateIndex::kSize>;
+
+/// Settings of NeighbourEkf. Measurement noise comes from `sensors.relative` (range std
+/// noise[0] * (1 + range_noise_growth * range), bearing noise[1], elevation noise[2],
+/// relative yaw noise2[0]).
+struct NeighbourEkfConfig {
+  SensorsConfig sensors;            ///< noise source (simulator defaults unless overridden)
+  int observer = -1;                ///< accept only measurements taken by this vehicle; -1 = any
+  int target = -1;                  ///< accept only observations of this neighbour; -1 = any
+  double max_lag = 0.3;             ///< replay window [s]
+  int buffer_capacity = 256;        ///< replay buffer entries (measurements + own-velocity samples)
+  double accel_noise = 0.5;         ///< neighbour acceleration white noise [m/s^2/sqrt(Hz)]
+  double yaw_accel_noise = 0.3;     ///< neighbour yaw acceleration white noise [rad/s^2/sqrt(Hz)]
+  double own_velocity_noise = 0.0;  ///< white error of the own velocity input [m/s*sqrt(s)]
+  double initial_velocity_std = 1.0;  ///< neighbour velocity std at initialisation [m/s]
+  double initial_yaw_rate_std = 0.5;  ///< neighbour yaw rate std at initialisation [rad/s]
+  double gate_probability = 0.99999;  ///< chi-square gate on the 4-dim NIS
+  int max_consecutive_gated = 50;     ///< then re-initialised from the measurement
+
+  /// Throws std::invalid_argument naming the first invalid field.
+  void Validate() const;
+};
+
+/// Relative measurement model h(dx, psi_j; own euler) = (range, bearing, elevation,
+/// relative yaw) of core/sensors.hpp, for the NeighbourStateIndex layout.
+Vec<4> RelativeMeasurementModel(const NeighbourStateVec& x, const Vec3& own_euler);
+/// Jacobian of RelativeMeasurementModel with respect to x (4 x 8).
+Mat<4, NeighbourStateIndex::kSize> RelativeMeasurementJacobian(const NeighbourStateVec& x,
+                                                               const Vec3& own_euler);
+/// Jacobian of RelativeMeasurementModel with respect to the own Euler angles (4 x 3).
+Mat<4, 3> RelativeMeasurementOwnAttitudeJacobian(const NeighbourStateVec& x, const Vec3& own_euler);
+
+/// EKF of one neighbour from relative range, bearing, elevation and relative yaw.
+///
+/// Inputs: kRelative measurements with the observer's own Euler angles [rad] (and
+/// optionally their covariance) and own velocity in {m} [m/s] at the measurement stamp;
+/// own-velocity samples through PredictTo. Between events dx integrates v_j minus the
+/// trapezoidal average of the own velocity. Late and out-of-order events within
+/// `max_lag` are replayed exactly. Initialised by the first valid measurement (velocity
+/// 0, yaw rate 0 with the configured std). Output: state() in NeighbourStateIndex layout,
+/// ready for the follower NMPC. No heap allocation after construction.
+class NeighbourEkf {
+ public:
+  /// Throws std::invalid_argument on an invalid config.
+  explicit NeighbourEkf(const NeighbourEkfConfig& config);
+
+  /// Fuses one kRelative measurement. own_euler: observer roll, pitch, yaw [rad];
+  /// own_velocity: observer velocity in {m} [m/s]; own_euler_cov: optional 3x3 covariance
+  /// of own_euler [rad^2] added to the measurement noise.
+  EkfStatus Process(const Measurement& relative, const Vec3& own_euler, const Vec3& own_velocity,
+                    const Mat3* own_euler_cov = nullptr);
+
+  /// Advances the filter to time t [s] with the own velocity at t [m/s] (the own velocity
+  /// is interpolated linearly since the previous event). Returns kRejectedTooOld or
+  /// kRejectedNonFinite when the sample cannot be used.
+  EkfStatus PredictTo(double t, const Vec3& own_velocity);
+
+  /// State at the newest event (NeighbourStateIndex layout); NaN before initialisation.
+  [[nodiscard]] NeighbourStateVec state() const;
+  /// Covariance of state().
+  [[nodiscard]] const NeighbourStateCov& covariance() const { return s_.P; }
+  /// State predicted to t with the own velocity held at own_velocity (no filter change).
+  [[nodiscard]] NeighbourStateVec StateAt(double t, const Vec3& own_velocity) const;
+  /// Stamp of the newest event [s].
+  [[nodiscard]] double time() const { return s_.time; }
+  /// True once a measurement initialised the filter.
+  [[nodiscard]] bool initialized() const { return s_.initialized; }
+  /// Rejection / acceptance counters (a copy, cheap).
+  [[nodiscard]] EkfCounters counters() const;
+  /// Configuration in use.
+  [[nodiscard]] const NeighbourEkfConfig& config() const { return config_; }
+
+ private:
+  struct Event {
+    double stamp = kNaN;
+    int order = 0;  // 0: own-velocity sample, 1: measurement
+    Measurement m;
+    Vec3 own_euler = Vec3::Zero();
+    Vec3 own_velocity = Vec3::Zero();
+    Mat3 own_euler_cov = Mat3::Zero();
+  };
+  struct State {
+    double time = kNaN;
+    bool initialized = false;
+    NeighbourStateVec x = NeighbourStateVec::Zero();
+    NeighbourStateCov P = NeighbourStateCov::Identity();
+    Vec3 own_velocity = Vec3::Constant(kNaN);  // own velocity at `time`
+    int consecutive_gated = 0;
+    std::int64_t gate_resets = 0;
+  };
+
+  EkfStatus Apply(const Event& e, State* s) const;
+  void Predict(double t, const Vec3& own_velocity, State* s) const;
+  void InitFromMeasurement(const Event& e, State* s) const;
+  [[nodiscard]] Mat<4, 4> NoiseCovariance(const Event& e, const NeighbourStateVec& x) const;
+
+  NeighbourEkfConfig config_;
+  double gate_ = 0.0;
+  State s_;
+  ReplayBuffer<Event, State> buffer_;
+  EkfCounters counters_;
+};
+
+}  // namespace fnmpc::estimation
