@@ -26,7 +26,9 @@ struct DenseQp {
   Eigen::VectorXd lb, ub, lbA, ubA;
 
   explicit DenseQp(const DenseQpDims& dims = {});
-  [[nodiscard]] DenseQpDims dims() const { return {static_cast<int>(g.size()), static_cast<int>(A.rows())}; }
+  [[nodiscard]] DenseQpDims dims() const {
+    return {static_cast<int>(g.size()), static_cast<int>(A.rows())};
+  }
 };
 
 enum class QpStatus : int {
@@ -50,14 +52,21 @@ struct QpSolution {
   int iterations = 0;             ///< active-set changes (adds + drops) in the last solve
   QpStatus status = QpStatus::kNumericalError;
   double objective = 0.0;
+  int num_active = 0;           ///< constraints in the final active set (equalities included)
+  int num_drops = 0;            ///< drops among `iterations`
+  int num_warm_start_adds = 0;  ///< adds among `iterations` taken from the previous active set
 
   explicit QpSolution(const DenseQpDims& dims = {});
 };
 
 struct QpSettings {
-  int max_iterations = 500;        ///< active-set changes per solve
-  double tolerance = 1e-10;        ///< primal feasibility / dual sign tolerance
-  bool warm_start = true;          ///< start from the previous solve's active set
+  int max_iterations = 500;  ///< active-set changes per solve
+  double tolerance = 1e-10;  ///< primal feasibility / dual sign tolerance
+  bool warm_start = true;    ///< start from the previous solve's active set
+  /// Warm-start variant: true = make the whole previous active set active at once and
+  /// drop negative multipliers; false = add the previous constraints one by one, in
+  /// order, while each addition is a full dual-feasible GI step.
+  bool warm_start_batch = true;
 };
 
 /// Dual active-set solver (Goldfarb-Idnani) for DenseQp, warm-started from the previous
@@ -79,6 +88,7 @@ class DenseQpSolver {
   struct Workspace;
   // Owned workspace, allocated once in the constructor.
   std::unique_ptr<Workspace> ws_;
+
  public:
   ~DenseQpSolver();
   DenseQpSolver(DenseQpSolver&&) noexcept;

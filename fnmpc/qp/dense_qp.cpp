@@ -1,0 +1,641 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "fnmpc/qp/dense_qp.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Jacobi>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+// Dual active-set method of Goldfarb and Idnani (Math. Programming 27, 1983).
+//
+// Every half-space is written as n' x >= b:
+//   lower bound   x_j >= lb_j    ->  n =  e_j,   b =  lb_j   (sign +1)
+//   upper bound   x_j <= ub_j    ->  n = -e_j,   b = -ub_j   (sign -1)
+//   general rows  likewise with n = +-A_i'.
+// Constraint ids are 0..nv-1 for bounds and nv..nv+nc-1 for general rows. The GI
+// multipliers u >= 0 satisfy H x + g = N u, hence y_id = -sign * u.
+//
+// With H = L L' the method keeps J = L^-T Q and an upper triangular R such that
+// J' N_active = [R; 0]. J1 = J(:, 0:q) and J2 = J(:, q:n). For a candidate
+// constraint p: d = J' n_p, primal step z = J2 d2, dual step r = R^-1 d1, and
+// n_p' z = |d2|^2. Adding/dropping a constraint updates J and R by Givens rotations.
+
+namespace fnmpc::qp {
+namespace {
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+// |d2| <= kDependencyTol * |d| means that the new normal lies (numerically) in the span
+// of the active normals (measured in the metric of H).
+constexpr double kDependencyTol = 1e-10;
+// A Cholesky pivot L_ii^2 below kPivotTol * max_i H_ii means H is not numerically PD.
+constexpr double kPivotTol = 1e-14;
+// Recomputations of (x, u) from the factorisation when no violated constraint remains.
+constexpr int kMaxRefinements = 3;
+
+// Per-constraint state.
+constexpr signed char kInactive = 0;
+constexpr signed char kActive = 1;
+constexpr signed char kRedundant = 2;  // equality implied by other active equalities
+
+// Outcome of an attempt to add one constraint.
+enum class AddResult { kAdded, kSkipped, kInfeasible, kMaxIterations };
+
+}  // namespace
+
+std::string_view ToString(QpStatus s) {
+  switch (s) {
+    case QpStatus::kOptimal:
+      return "optimal";
+    case QpStatus::kInfeasible:
+      return "infeasible";
+    case QpStatus::kMaxIterations:
+      return "max_iterations";
+    case QpStatus::kNotConvex:
+      return "not_convex";
+    case QpStatus::kNumericalError:
+      return "numerical_error";
+    case QpStatus::kInvalidInput:
+      return "invalid_input";
+  }
+  return "unknown";
+}
+
+DenseQp::DenseQp(const DenseQpDims& dims)
+    : H(Eigen::MatrixXd::Zero(dims.nv, dims.nv)),
+      g(Eigen::VectorXd::Zero(dims.nv)),
+      A(Eigen::MatrixXd::Zero(dims.nc, dims.nv)),
+      lb(Eigen::VectorXd::Constant(dims.nv, -kInfinity)),
+      ub(Eigen::VectorXd::Constant(dims.nv, kInfinity)),
+      lbA(Eigen::VectorXd::Constant(dims.nc, -kInfinity)),
+      ubA(Eigen::VectorXd::Constant(dims.nc, kInfinity)) {}
+
+QpSolution::QpSolution(const DenseQpDims& dims)
+    : x(Eigen::VectorXd::Zero(dims.nv)),
+      y_bounds(Eigen::VectorXd::Zero(dims.nv)),
+      y_constraints(Eigen::VectorXd::Zero(dims.nc)) {}
+
+double KktResiduals::Max() const {
+  return std::max(std::max(stationarity, primal), std::max(dual, complementarity));
+}
+
+struct DenseQpSolver::Workspace {
+  Workspace(const DenseQpDims& dims, const QpSettings& settings);
+
+  QpStatus Run(const DenseQp& qp, QpSolution* sol);
+
+  // Data checks; kOptimal means "valid".
+  QpStatus Validate(const DenseQp& qp) const;
+  // Lower / upper bound value of constraint id.
+  double Lower(int id) const { return id < nv ? qp_->lb[id] : qp_->lbA[id - nv]; }
+  double Upper(int id) const { return id < nv ? qp_->ub[id] : qp_->ubA[id - nv]; }
+  bool IsEquality(int id) const { return Lower(id) == Upper(id); }
+  // Right-hand side b of the half-space n' x >= b with n = sign * (e_id or A_id').
+  double Rhs(int id, int sign) const { return sign > 0 ? Lower(id) : -Upper(id); }
+  double ViolationTol(double b) const { return settings.tolerance * (1.0 + std::abs(b)); }
+  // n' x - b at the current x.
+  double Slack(int id, int sign) const {
+    const double nx = id < nv ? x[id] : qp_->A.row(id - nv).dot(x);
+    return sign * nx - Rhs(id, sign);
+  }
+
+  void FormJ();
+  // d = J' n, z = J2 d2, r = R^-1 d1; returns |d2|^2 and |d|^2.
+  void ComputeStep(int id, int sign, double* zn, double* dn2);
+  // Index of the blocking active inequality (smallest u_k / r_k with r_k > 0), or -1.
+  int BlockingConstraint(double* t1) const;
+  void AppendActive(int id, int sign, double u_p);
+  void DropActive(int k);
+  // One GI major step for constraint (id, sign): partial steps/drops until added.
+  // With warm_only no drop is allowed: the constraint is skipped instead.
+  AddResult Add(int id, int sign, bool equality, bool warm_only);
+  // Most violated inactive constraint; returns false if none.
+  bool MostViolated(int* id, int* sign);
+  // Recompute x and u from the factorisation of the active set; with clamp, negative
+  // inequality multipliers (round-off) are set to zero.
+  void Refine(bool clamp);
+  // Warm start, batch variant: all previous constraints, then drop negative multipliers.
+  AddResult WarmStartBatch();
+  // Warm start, sequential variant: previous constraints in order while dual feasible.
+  AddResult WarmStartSequential();
+  void WriteSolution(QpSolution* sol);
+
+  int nv;
+  int nc;
+  QpSettings settings;
+  const DenseQp* qp_ = nullptr;
+
+  Eigen::LLT<Eigen::MatrixXd> llt;
+  Eigen::MatrixXd J;  // nv x nv
+  Eigen::MatrixXd R;  // nv x nv, upper triangular block q x q is used
+  Eigen::VectorXd x, d, z, r, u, w, v, row;
+  Eigen::VectorXd ax;  // nc
+
+  int q = 0;  // number of active constraints
+  bool j_ready = false;
+  std::vector<int> active_id, active_sign;
+  std::vector<signed char> active_eq;
+  std::vector<signed char> state;  // nv + nc
+
+  // Previous solve's active inequalities (warm start).
+  std::vector<int> prev_id, prev_sign;
+  int prev_count = 0;
+
+  int iterations = 0;
+  int drops = 0;
+  int warm_adds = 0;
+};
+
+DenseQpSolver::Workspace::Workspace(const DenseQpDims& dims, const QpSettings& s)
+    : nv(dims.nv),
+      nc(dims.nc),
+      settings(s),
+      llt(dims.nv),
+      J(dims.nv, dims.nv),
+      R(dims.nv, dims.nv),
+      x(dims.nv),
+      d(dims.nv),
+      z(dims.nv),
+      r(dims.nv),
+      u(dims.nv),
+      w(dims.nv),
+      v(dims.nv),
+      row(dims.nv),
+      ax(dims.nc),
+      active_id(dims.nv),
+      active_sign(dims.nv),
+      active_eq(dims.nv),
+      state(dims.nv + dims.nc),
+      prev_id(dims.nv),
+      prev_sign(dims.nv) {
+  J.setZero();
+  R.setZero();
+  x.setZero();
+  d.setZero();
+  z.setZero();
+  r.setZero();
+  u.setZero();
+  w.setZero();
+  v.setZero();
+  row.setZero();
+  ax.setZero();
+  // Run one factorisation so that the LLT object owns its storage.
+  llt.compute(Eigen::MatrixXd::Identity(nv, nv));
+}
+
+QpStatus DenseQpSolver::Workspace::Validate(const DenseQp& qp) const {
+  if (qp.H.rows() != nv || qp.H.cols() != nv || qp.g.size() != nv || qp.A.rows() != nc ||
+      (nc > 0 && qp.A.cols() != nv) || qp.lb.size() != nv || qp.ub.size() != nv ||
+      qp.lbA.size() != nc || qp.ubA.size() != nc) {
+    return QpStatus::kInvalidInput;
+  }
+  if (!qp.H.allFinite() || !qp.g.allFinite() || (nc > 0 && !qp.A.allFinite())) {
+    return QpStatus::kNumericalError;
+  }
+  const auto check_sides = [](double lo, double hi) {
+    if (std::isnan(lo) || std::isnan(hi)) return QpStatus::kNumericalError;
+    if (lo > hi || lo == kInfinity || hi == -kInfinity) return QpStatus::kInvalidInput;
+    return QpStatus::kOptimal;
+  };
+  for (int j = 0; j < nv; ++j) {
+    const QpStatus s = check_sides(qp.lb[j], qp.ub[j]);
+    if (s != QpStatus::kOptimal) return s;
+  }
+  for (int i = 0; i < nc; ++i) {
+    const QpStatus s = check_sides(qp.lbA[i], qp.ubA[i]);
+    if (s != QpStatus::kOptimal) return s;
+  }
+  return QpStatus::kOptimal;
+}
+
+void DenseQpSolver::Workspace::FormJ() {
+  // J = L^-T (Q = I): upper triangular inverse of L'.
+  J.setIdentity();
+  llt.matrixU().solveInPlace(J);
+  j_ready = true;
+}
+
+void DenseQpSolver::Workspace::ComputeStep(int id, int sign, double* zn, double* dn2) {
+  if (id < nv) {
+    d = static_cast<double>(sign) * J.row(id).transpose();
+  } else {
+    row = qp_->A.row(id - nv).transpose();
+    d.noalias() = J.transpose() * row;
+    if (sign < 0) d = -d;
+  }
+  const int m = nv - q;
+  if (m > 0) {
+    z.noalias() = J.rightCols(m) * d.tail(m);
+    *zn = d.tail(m).squaredNorm();
+  } else {
+    z.setZero();
+    *zn = 0.0;
+  }
+  *dn2 = d.squaredNorm();
+  if (q > 0) {
+    r.head(q) = d.head(q);
+    R.topLeftCorner(q, q).triangularView<Eigen::Upper>().solveInPlace(r.head(q));
+  }
+}
+
+int DenseQpSolver::Workspace::BlockingConstraint(double* t1) const {
+  int k = -1;
+  double best = kInfinity;
+  for (int j = 0; j < q; ++j) {
+    if (active_eq[j] || !(r[j] > 0.0)) continue;
+    const double t = u[j] / r[j];
+    if (t < best) {
+      best = t;
+      k = j;
+    }
+  }
+  *t1 = best;
+  return k;
+}
+
+void DenseQpSolver::Workspace::AppendActive(int id, int sign, double u_p) {
+  // Rotate d(q:n) onto its first entry; J <- J G keeps J' n_p = d.
+  for (int k = nv - 1; k > q; --k) {
+    if (d[k] == 0.0) continue;
+    Eigen::JacobiRotation<double> rot;
+    double rho = 0.0;
+    rot.makeGivens(d[k - 1], d[k], &rho);
+    d[k - 1] = rho;
+    d[k] = 0.0;
+    J.applyOnTheRight(k - 1, k, rot);
+  }
+  R.col(q).head(q + 1) = d.head(q + 1);
+  active_id[q] = id;
+  active_sign[q] = sign;
+  active_eq[q] = IsEquality(id) ? 1 : 0;
+  u[q] = u_p;
+  state[id] = kActive;
+  ++q;
+  ++iterations;
+}
+
+void DenseQpSolver::Workspace::DropActive(int k) {
+  state[active_id[k]] = kInactive;
+  // Remove column k of R: columns k+1.. shift left and form an upper Hessenberg block.
+  for (int c = k; c < q - 1; ++c) {
+    R.col(c).head(c + 2) = R.col(c + 1).head(c + 2);
+    active_id[c] = active_id[c + 1];
+    active_sign[c] = active_sign[c + 1];
+    active_eq[c] = active_eq[c + 1];
+    u[c] = u[c + 1];
+  }
+  // Restore the triangle with rotations of rows (j, j+1); J <- J G keeps J' N = [R; 0].
+  for (int j = k; j < q - 1; ++j) {
+    Eigen::JacobiRotation<double> rot;
+    double rho = 0.0;
+    rot.makeGivens(R(j, j), R(j + 1, j), &rho);
+    R(j, j) = rho;
+    R(j + 1, j) = 0.0;
+    const int tail = q - 2 - j;
+    if (tail > 0) R.middleCols(j + 1, tail).applyOnTheLeft(j, j + 1, rot.adjoint());
+    J.applyOnTheRight(j, j + 1, rot);
+  }
+  --q;
+  R.col(q).setZero();
+  u[q] = 0.0;
+  ++iterations;
+  ++drops;
+}
+
+AddResult DenseQpSolver::Workspace::Add(int id, int sign, bool equality, bool warm_only) {
+  double u_p = 0.0;
+  const double tol = ViolationTol(Rhs(id, sign));
+  while (true) {
+    if (iterations >= settings.max_iterations) return AddResult::kMaxIterations;
+    const double s = Slack(id, sign);
+    double zn = 0.0;
+    double dn2 = 0.0;
+    ComputeStep(id, sign, &zn, &dn2);
+    double t1 = kInfinity;
+    const int k = BlockingConstraint(&t1);
+    const bool dependent = !(zn > kDependencyTol * kDependencyTol * dn2) || !(zn > 0.0);
+    if (dependent) {
+      if (k < 0) {
+        // n_p = N r with r <= 0 on inequalities: n_p' x <= const < b_p on the feasible set.
+        if (-s <= tol) {
+          if (equality) state[id] = kRedundant;
+          return AddResult::kSkipped;
+        }
+        return AddResult::kInfeasible;
+      }
+      if (warm_only) return AddResult::kSkipped;
+      // Pure dual step, then drop the blocking constraint.
+      u.head(q) -= t1 * r.head(q);
+      u_p += t1;
+      DropActive(k);
+      continue;
+    }
+    const double t2 = -s / zn;
+    if (warm_only && !(t2 >= 0.0 && t2 <= t1)) return AddResult::kSkipped;
+    const double t = std::min(t1, t2);
+    x += t * z;
+    u.head(q) -= t * r.head(q);
+    for (int j = 0; j < q; ++j) {
+      if (!active_eq[j] && u[j] < 0.0) u[j] = 0.0;
+    }
+    u_p += t;
+    if (t2 <= t1) {
+      AppendActive(id, sign, u_p);
+      return AddResult::kAdded;
+    }
+    DropActive(k);
+  }
+}
+
+bool DenseQpSolver::Workspace::MostViolated(int* id, int* sign) {
+  double best = 0.0;
+  int best_id = -1;
+  int best_sign = 0;
+  const auto consider = [&](int c, double value, double lo, double hi) {
+    if (state[c] != kInactive) return;
+    const double below = lo - value;
+    if (below > best && below > ViolationTol(lo)) {
+      best = below;
+      best_id = c;
+      best_sign = 1;
+    }
+    const double above = value - hi;
+    if (above > best && above > ViolationTol(hi)) {
+      best = above;
+      best_id = c;
+      best_sign = -1;
+    }
+  };
+  const DenseQp& qp = *qp_;
+  for (int j = 0; j < nv; ++j) consider(j, x[j], qp.lb[j], qp.ub[j]);
+  if (nc > 0) {
+    ax.noalias() = qp.A * x;
+    for (int i = 0; i < nc; ++i) consider(nv + i, ax[i], qp.lbA[i], qp.ubA[i]);
+  }
+  *id = best_id;
+  *sign = best_sign;
+  return best_id >= 0;
+}
+
+void DenseQpSolver::Workspace::Refine(bool clamp) {
+  // x = J1 R^-T b_A - J2 J2' g and u = R^-1 (R^-T b_A + J1' g).
+  for (int k = 0; k < q; ++k) v[k] = Rhs(active_id[k], active_sign[k]);
+  R.topLeftCorner(q, q).transpose().triangularView<Eigen::Lower>().solveInPlace(v.head(q));
+  w.noalias() = J.transpose() * qp_->g;
+  const int m = nv - q;
+  x.noalias() = J.leftCols(q) * v.head(q);
+  if (m > 0) x.noalias() -= J.rightCols(m) * w.tail(m);
+  u.head(q) = v.head(q) + w.head(q);
+  R.topLeftCorner(q, q).triangularView<Eigen::Upper>().solveInPlace(u.head(q));
+  if (!clamp) return;
+  for (int j = 0; j < q; ++j) {
+    if (!active_eq[j] && u[j] < 0.0) u[j] = 0.0;
+  }
+}
+
+AddResult DenseQpSolver::Workspace::WarmStartBatch() {
+  // Make every previous constraint active (linearly independent ones only), whatever
+  // its slack: (x, u) is then the minimiser on that working set.
+  const int q0 = q;
+  for (int k = 0; k < prev_count; ++k) {
+    const int id = prev_id[k];
+    const int sign = prev_sign[k];
+    if (state[id] != kInactive || IsEquality(id) || !std::isfinite(Rhs(id, sign))) continue;
+    if (iterations >= settings.max_iterations) return AddResult::kMaxIterations;
+    if (!j_ready) FormJ();
+    double zn = 0.0;
+    double dn2 = 0.0;
+    ComputeStep(id, sign, &zn, &dn2);
+    if (!(zn > kDependencyTol * kDependencyTol * dn2) || !(zn > 0.0)) continue;
+    AppendActive(id, sign, 0.0);
+    ++warm_adds;
+  }
+  if (q == q0) return AddResult::kSkipped;
+  // Dual feasibility: drop the most negative inequality multiplier until none is left.
+  while (true) {
+    Refine(/*clamp=*/false);
+    const double scale = 1.0 + u.head(q).lpNorm<Eigen::Infinity>();
+    int worst = -1;
+    double worst_u = -1e-12 * scale;
+    for (int j = 0; j < q; ++j) {
+      if (!active_eq[j] && u[j] < worst_u) {
+        worst_u = u[j];
+        worst = j;
+      }
+    }
+    if (worst < 0) break;
+    if (iterations >= settings.max_iterations) return AddResult::kMaxIterations;
+    DropActive(worst);
+  }
+  for (int j = 0; j < q; ++j) {
+    if (!active_eq[j] && u[j] < 0.0) u[j] = 0.0;
+  }
+  return AddResult::kAdded;
+}
+
+AddResult DenseQpSolver::Workspace::WarmStartSequential() {
+  for (int k = 0; k < prev_count; ++k) {
+    const int id = prev_id[k];
+    const int sign = prev_sign[k];
+    if (state[id] != kInactive || IsEquality(id)) continue;
+    const double b = Rhs(id, sign);
+    if (!std::isfinite(b)) continue;
+    if (!(Slack(id, sign) < -ViolationTol(b))) continue;
+    if (!j_ready) FormJ();
+    const AddResult a = Add(id, sign, /*equality=*/false, /*warm_only=*/true);
+    if (a == AddResult::kAdded) ++warm_adds;
+    if (a == AddResult::kInfeasible || a == AddResult::kMaxIterations) return a;
+  }
+  return AddResult::kSkipped;
+}
+
+void DenseQpSolver::Workspace::WriteSolution(QpSolution* sol) {
+  sol->y_bounds.setZero();
+  sol->y_constraints.setZero();
+  for (int k = 0; k < q; ++k) {
+    const int id = active_id[k];
+    const double y = -static_cast<double>(active_sign[k]) * u[k];
+    if (id < nv) {
+      sol->y_bounds[id] = y;
+    } else {
+      sol->y_constraints[id - nv] = y;
+    }
+  }
+  sol->x = x;
+  w.noalias() = qp_->H * x;
+  sol->objective = 0.5 * x.dot(w) + qp_->g.dot(x);
+  sol->num_active = q;
+}
+
+QpStatus DenseQpSolver::Workspace::Run(const DenseQp& qp, QpSolution* sol) {
+  qp_ = &qp;
+  q = 0;
+  j_ready = false;
+  iterations = 0;
+  drops = 0;
+  warm_adds = 0;
+  std::fill(state.begin(), state.end(), kInactive);
+
+  if (const QpStatus s = Validate(qp); s != QpStatus::kOptimal) return s;
+
+  // Unconstrained minimiser.
+  llt.compute(qp.H);
+  if (llt.info() != Eigen::Success) return QpStatus::kNotConvex;
+  const double max_h = qp.H.diagonal().cwiseAbs().maxCoeff();
+  const double min_pivot = llt.matrixLLT().diagonal().cwiseAbs2().minCoeff();
+  if (!(min_pivot > kPivotTol * max_h)) return QpStatus::kNotConvex;
+  x = -qp.g;
+  llt.solveInPlace(x);
+  u.setZero();
+
+  const auto fail = [](AddResult a) {
+    return a == AddResult::kInfeasible ? QpStatus::kInfeasible : QpStatus::kMaxIterations;
+  };
+
+  // Phase 1: equalities are always active (sign chosen so that the slack is <= 0).
+  for (int id = 0; id < nv + nc; ++id) {
+    if (!IsEquality(id)) continue;
+    if (!j_ready) FormJ();
+    const int sign = Slack(id, 1) > 0.0 ? -1 : 1;
+    const AddResult a = Add(id, sign, /*equality=*/true, /*warm_only=*/false);
+    if (a == AddResult::kInfeasible || a == AddResult::kMaxIterations) return fail(a);
+  }
+
+  // Phase 2: warm start from the previous active inequalities, in order, as long as each
+  // addition is a full step that keeps the multipliers dual feasible.
+  if (settings.warm_start && prev_count > 0) {
+    const AddResult a = settings.warm_start_batch ? WarmStartBatch() : WarmStartSequential();
+    if (a == AddResult::kInfeasible || a == AddResult::kMaxIterations) return fail(a);
+  }
+
+  // Phase 3: GI major iterations on the most violated constraint.
+  int refinements = 0;
+  const int max_scans = 2 * settings.max_iterations + 2 * (nv + nc) + 10;
+  for (int scan = 0; scan < max_scans; ++scan) {
+    int id = -1;
+    int sign = 0;
+    if (!MostViolated(&id, &sign)) {
+      if (q == 0 || refinements >= kMaxRefinements) {
+        if (!x.allFinite() || !u.head(q).allFinite()) return QpStatus::kNumericalError;
+        WriteSolution(sol);
+        return QpStatus::kOptimal;
+      }
+      ++refinements;
+      Refine(/*clamp=*/true);
+      continue;
+    }
+    if (!j_ready) FormJ();
+    const AddResult a = Add(id, sign, /*equality=*/false, /*warm_only=*/false);
+    if (a == AddResult::kInfeasible || a == AddResult::kMaxIterations) return fail(a);
+  }
+  return QpStatus::kMaxIterations;
+}
+
+DenseQpSolver::DenseQpSolver(const DenseQpDims& dims, const QpSettings& settings)
+    : dims_(dims), settings_(settings) {
+  if (dims.nv <= 0) {
+    throw std::invalid_argument("[DenseQpSolver] nv must be > 0, got " + std::to_string(dims.nv));
+  }
+  if (dims.nc < 0) {
+    throw std::invalid_argument("[DenseQpSolver] nc must be >= 0, got " + std::to_string(dims.nc));
+  }
+  if (settings.max_iterations <= 0) {
+    throw std::invalid_argument("[DenseQpSolver] max_iterations must be > 0, got " +
+                                std::to_string(settings.max_iterations));
+  }
+  if (!(settings.tolerance > 0.0) || !std::isfinite(settings.tolerance)) {
+    throw std::invalid_argument("[DenseQpSolver] tolerance must be finite and > 0, got " +
+                                std::to_string(settings.tolerance));
+  }
+  ws_ = std::make_unique<Workspace>(dims, settings);
+}
+
+DenseQpSolver::~DenseQpSolver() = default;
+DenseQpSolver::DenseQpSolver(DenseQpSolver&&) noexcept = default;
+DenseQpSolver& DenseQpSolver::operator=(DenseQpSolver&&) noexcept = default;
+
+void DenseQpSolver::ResetWarmStart() {
+  if (ws_) ws_->prev_count = 0;
+}
+
+QpStatus DenseQpSolver::Solve(const DenseQp& qp, QpSolution* solution) {
+  if (solution == nullptr || !ws_) return QpStatus::kInvalidInput;
+  Workspace& ws = *ws_;
+  // Size the output once if the caller did not (the only allocation path of Solve()).
+  if (solution->x.size() != dims_.nv) solution->x.setZero(dims_.nv);
+  if (solution->y_bounds.size() != dims_.nv) solution->y_bounds.setZero(dims_.nv);
+  if (solution->y_constraints.size() != dims_.nc) solution->y_constraints.setZero(dims_.nc);
+
+  QpStatus status = QpStatus::kNumericalError;
+  status = ws.Run(qp, solution);
+  solution->iterations = ws.iterations;
+  solution->num_drops = ws.drops;
+  solution->num_warm_start_adds = ws.warm_adds;
+  solution->status = status;
+  if (status == QpStatus::kOptimal) {
+    // Remember the active inequalities, in order, for the next warm start.
+    ws.prev_count = 0;
+    for (int k = 0; k < ws.q; ++k) {
+      if (ws.active_eq[k]) continue;
+      ws.prev_id[ws.prev_count] = ws.active_id[k];
+      ws.prev_sign[ws.prev_count] = ws.active_sign[k];
+      ++ws.prev_count;
+    }
+  } else {
+    // The previous warm-start set is kept: one failed QP does not cost the next one.
+    // Last iterate if it is finite (useful for kMaxIterations), zeros otherwise.
+    const bool usable =
+        (status == QpStatus::kMaxIterations || status == QpStatus::kInfeasible) && ws.x.allFinite();
+    if (usable) {
+      solution->x = ws.x;
+    } else {
+      solution->x.setZero();
+    }
+    solution->y_bounds.setZero();
+    solution->y_constraints.setZero();
+    solution->objective = 0.0;
+    solution->num_active = 0;
+  }
+  return status;
+}
+
+KktResiduals ComputeKktResiduals(const DenseQp& qp, const QpSolution& sol) {
+  KktResiduals res;
+  const Eigen::Index nv = qp.g.size();
+  const Eigen::Index nc = qp.A.rows();
+  if (sol.x.size() != nv || sol.y_bounds.size() != nv || sol.y_constraints.size() != nc) {
+    res.stationarity = res.primal = res.dual = res.complementarity = kInfinity;
+    return res;
+  }
+  Eigen::VectorXd grad = qp.H * sol.x + qp.g + sol.y_bounds;
+  if (nc > 0) grad.noalias() += qp.A.transpose() * sol.y_constraints;
+  res.stationarity = grad.lpNorm<Eigen::Infinity>();
+  const auto side = [&res](double value, double lo, double hi, double y) {
+    res.primal = std::max({res.primal, lo - value, value - hi});
+    if (lo == hi) return;  // equality: free multiplier, no complementarity
+    if (y > 0.0) {
+      if (hi == kInfinity) {
+        res.dual = std::max(res.dual, y);
+      } else {
+        res.complementarity = std::max(res.complementarity, y * std::abs(hi - value));
+      }
+    } else if (y < 0.0) {
+      if (lo == -kInfinity) {
+        res.dual = std::max(res.dual, -y);
+      } else {
+        res.complementarity = std::max(res.complementarity, -y * std::abs(value - lo));
+      }
+    }
+  };
+  for (Eigen::Index j = 0; j < nv; ++j) side(sol.x[j], qp.lb[j], qp.ub[j], sol.y_bounds[j]);
+  if (nc > 0) {
+    const Eigen::VectorXd ax = qp.A * sol.x;
+    for (Eigen::Index i = 0; i < nc; ++i) side(ax[i], qp.lbA[i], qp.ubA[i], sol.y_constraints[i]);
+  }
+  return res;
+}
+
+}  // namespace fnmpc::qp
