@@ -20,7 +20,7 @@ void DownwashSettings::Validate() const {
   RequirePositive(air_density, "air_density");
   RequirePositive(rotor_radius, "rotor_radius");
   RequirePositive(exit_velocity_factor, "exit_velocity_factor");
-  RequirePositive(decay_constant, "decay_constant");
+  RequirePositive(wake_radius, "wake_radius");
   RequirePositive(spreading_rate, "spreading_rate");
   RequirePositive(cutoff_half_widths, "cutoff_half_widths");
 }
@@ -39,14 +39,11 @@ Vec3 DownwashVelocity(const DownwashSettings& s, const Vec3& position, const Vec
   const double dist = -d.dot(thrust_axis);  // downstream distance s
   if (dist <= 0.0) return Vec3::Zero();
   const double r = (d + dist * thrust_axis).norm();
-  const double u_exit = s.exit_velocity_factor * v_h;
-  // Momentum flux rho U_J^2 A_J = T gives the exit area, hence the diameter D_J.
-  const double exit_area = thrust / (s.air_density * u_exit * u_exit);
-  const double exit_diameter = std::sqrt(4.0 * exit_area / M_PI);
-  const double half_width = std::max(0.5 * exit_diameter, s.spreading_rate * dist);
+  const double half_width = s.wake_radius + s.spreading_rate * dist;
   if (r > s.cutoff_half_widths * half_width) return Vec3::Zero();
-  const double core = s.decay_constant * exit_diameter;
-  const double u_centre = dist <= core ? u_exit : u_exit * core / dist;
+  const double area = 4.0 * M_PI * s.rotor_radius * s.rotor_radius;
+  const double u_centre = std::min(s.exit_velocity_factor * v_h,
+                                   v_h * std::sqrt(4.0 * M_LN2 * area / M_PI) / half_width);
   const double eta = r / half_width;
   const double u = u_centre * std::exp(-M_LN2 * eta * eta);
   return -u * thrust_axis;

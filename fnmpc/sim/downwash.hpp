@@ -7,22 +7,22 @@
 /// as a self-similar round turbulent jet, and quadratic drag. See docs/simulator.md.
 namespace fnmpc::sim {
 
-/// Settings of the downwash (rotor wake) model. The wake of a vehicle with total thrust T
-/// is a round jet along -b_z (b_z = body z axis of the upper vehicle) that carries the
-/// momentum flux T: exit velocity U_J = exit_velocity_factor * v_h with the hover induced
-/// velocity v_h = sqrt(T / (2 rho A)), A = 4 pi R^2 the disc area of the four rotors, and
-/// exit area A_J = T / (rho U_J^2). Centreline velocity U_c(s) = U_J min(1, B D_J / s) at
-/// the downstream distance s, half width r_half(s) = max(D_J / 2, S s), Gaussian radial
-/// profile U = U_c exp(-ln2 (r / r_half)^2), cut to zero beyond cutoff_half_widths * r_half.
+/// Settings of the downwash (rotor wake) model: the wake of a vehicle with total thrust T
+/// is a self-similar round turbulent jet along -b_z (b_z = body z axis of the upper
+/// vehicle) that carries the momentum flux T. At the downstream distance s the half width is
+/// r_half(s) = wake_radius + S s (a virtual origin wake_radius / S above the rotors), the
+/// radial profile is Gaussian U = U_c exp(-ln2 (r / r_half)^2), and momentum conservation
+/// (rho U_c^2 pi r_half^2 / (2 ln2) = T) gives U_c(s) = v_h sqrt(4 ln2 A / pi) / r_half(s)
+/// with v_h = sqrt(T / (2 rho A)) and A = 4 pi R^2; U_c is capped at
+/// exit_velocity_factor * v_h. Zero beyond cutoff_half_widths * r_half and above the rotors.
 struct DownwashSettings {
-  bool enabled = false;         ///< switch for the scenario
-  double air_density = 1.225;   ///< rho [kg/m^3]
-  double rotor_radius = 0.127;  ///< R, one propeller [m] (10 inch)
-  double exit_velocity_factor =
-      2.0;                          ///< U_J / v_h [-]: 2 = fully contracted wake (momentum theory)
-  double decay_constant = 5.8;      ///< B [-], round jet centreline decay (Pope 2000, ch. 5)
-  double spreading_rate = 0.094;    ///< S [-], d r_half / d s (Pope 2000, ch. 5)
-  double cutoff_half_widths = 3.0;  ///< radial cut-off [half widths]
+  bool enabled = false;               ///< switch for the scenario
+  double air_density = 1.225;         ///< rho [kg/m^3]
+  double rotor_radius = 0.127;        ///< R, one propeller [m] (10 inch)
+  double wake_radius = 0.3;           ///< half width of the wake at the rotor plane [m]
+  double spreading_rate = 0.094;      ///< S [-], d r_half / d s (Pope 2000, ch. 5)
+  double exit_velocity_factor = 2.0;  ///< cap of U_c / v_h [-] (momentum theory far wake)
+  double cutoff_half_widths = 3.0;    ///< radial cut-off [half widths]
 
   /// Throws std::invalid_argument on non-physical values.
   void Validate() const;

@@ -77,8 +77,8 @@ TEST_P(AttitudeStepTest, ClosedLoopMatchesFirstOrderModel) {
   const double gain = p.attitude_gain[axis];
   RecordProperty("fitted_tau", std::to_string(fit.tau));
   RecordProperty("fitted_gain", std::to_string(fit.gain));
-  std::printf("axis %d: fitted tau %.4f s (file %.4f), gain %.3f (file %.3f)\n", axis, fit.tau,
-              tau, fit.gain, gain);
+  std::printf("axis %d: fitted tau %.4f s (file %.4f), gain %.3f (file %.3f)\n", axis, fit.tau, tau,
+              fit.gain, gain);
   EXPECT_NEAR(fit.tau, tau, 0.15 * tau);
   EXPECT_NEAR(fit.gain, gain, 0.15 * gain);
 }
