@@ -3,6 +3,341 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
+#include <cstdio>
+#include <cstdlib>
+#include <new>
+#include <random>
+
+#include "synthetic_truth.hpp"
+
+// Counts global operator new calls to check the "no allocation after construction" rule.
+namespace {
+std::size_t g_allocations = 0;
+}  // namespace
+void* operator new(std::size_t n) {
+  ++g_allocations;
+  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
 namespace fnmpc::estimation {
-namespace {}
+namespace {
+
+using testing::GenerateVehicleStream;
+using testing::LissajousTrajectory;
+using testing::SensorStream;
+using testing::SensorStreamOptions;
+using testing::TruthSample;
+using testing::VerticalProfile;
+using Idx = VehicleStateIndex;
+
+VehicleStateVec ErrorVector(const VehicleEstimate& est, const TruthSample& tr, const Vec3& ba,
+                            const Vec3& bg) {
+  VehicleStateVec e;
+  e.segment<3>(Idx::kPos) = est.position - tr.p;
+  e.segment<3>(Idx::kVel) = est.velocity - tr.v;
+  e.segment<3>(Idx::kEuler) = est.euler - tr.euler;
+  e(Idx::kEuler + 2) = WrapAngle(e(Idx::kEuler + 2));
+  e.segment<3>(Idx::kAccelBias) = est.accel_bias - ba;
+  e.segment<3>(Idx::kGyroBias) = est.gyro_bias - bg;
+  return e;
+}
+
+double Nees(const VehicleStateVec& e, const VehicleStateCov& P) {
+  return e.dot(Eigen::LLT<VehicleStateCov>(P).solve(e));
+}
+
+struct FlightStats {
+  double pos_rms = 0, vel_rms = 0, raw_pos_rms = 0, raw_vel_rms = 0;
+  double nees_sum = 0, nees_pv_sum = 0;
+  int nees_count = 0;
+  EkfCounters counters;
+};
+
+VehicleEkfConfig FlyingConfig() {
+  VehicleEkfConfig c;
+  c.initial_mode = VehicleMode::kFlying;
+  c.auto_mode_switch = false;
+  return c;
+}
+
+// Runs one flight on the Lissajous trajectory and accumulates errors (RMS sampled every
+// 0.05 s, NEES every 1 s after a 3 s burn-in so that samples are nearly independent).
+FlightStats RunFlight(std::uint32_t seed, double duration) {
+  const VehicleEkfConfig cfg = FlyingConfig();
+  std::mt19937 rng(seed);
+  LissajousTrajectory traj;
+  SensorStreamOptions opt;
+  opt.t1 = duration;
+  opt.accel_bias_noise = cfg.accel_bias_noise;
+  opt.gyro_bias_noise = cfg.gyro_bias_noise;
+  opt.accel_bias0 = testing::Gaussian3(&rng, Vec3::Constant(cfg.initial_accel_bias_std));
+  opt.gyro_bias0 = testing::Gaussian3(&rng, Vec3::Constant(cfg.initial_gyro_bias_std));
+  const SensorStream stream = GenerateVehicleStream(traj, cfg.sensors, opt, &rng);
+  VehicleEkf ekf(cfg, model::VehicleParams{});
+  FlightStats st;
+  double next_rms = 1.0, next_nees = 3.0;
+  int n_rms = 0, n_raw_pos = 0, n_raw_vel = 0;
+  for (std::size_t i = 0; i < stream.measurements.size(); ++i) {
+    const Measurement& m = stream.measurements[i];
+    const TruthSample tr = traj.At(m.stamp);
+    if (m.kind == SensorKind::kMocapPose) {
+      st.raw_pos_rms += (m.position - tr.p).squaredNorm();
+      ++n_raw_pos;
+    } else if (m.kind == SensorKind::kOpticalFlow) {
+      st.raw_vel_rms += (m.velocity - tr.v).squaredNorm();
+      ++n_raw_vel;
+    }
+    ekf.Process(m);
+    const double t_next =
+        i + 1 < stream.measurements.size() ? stream.measurements[i + 1].stamp : kInf;
+    while (next_rms < t_next && next_rms <= duration) {
+      const VehicleEstimate est = ekf.Estimate(next_rms);
+      const TruthSample x = traj.At(next_rms);
+      st.pos_rms += (est.position - x.p).squaredNorm();
+      st.vel_rms += (est.velocity - x.v).squaredNorm();
+      ++n_rms;
+      next_rms += 0.05;
+    }
+    while (next_nees < t_next && next_nees <= duration) {
+      const VehicleEstimate est = ekf.Estimate(next_nees);
+      Vec3 ba, bg;
+      stream.BiasAt(next_nees, &ba, &bg);
+      const VehicleStateVec e = ErrorVector(est, traj.At(next_nees), ba, bg);
+      st.nees_sum += Nees(e, est.covariance);
+      st.nees_pv_sum += e.head<6>().dot(
+          Eigen::LLT<Mat<6, 6>>(est.covariance.topLeftCorner<6, 6>()).solve(e.head<6>()));
+      ++st.nees_count;
+      next_nees += 1.0;
+    }
+  }
+  st.pos_rms = std::sqrt(st.pos_rms / n_rms);
+  st.vel_rms = std::sqrt(st.vel_rms / n_rms);
+  st.raw_pos_rms = std::sqrt(st.raw_pos_rms / n_raw_pos);
+  st.raw_vel_rms = std::sqrt(st.raw_vel_rms / n_raw_vel);
+  st.counters = ekf.counters();
+  return st;
+}
+
+TEST(VehicleEkfTest, FlyingRmsBelowRawMeasurementError) {
+  // Given a 20 s 3D flight with every sensor at its default rate and noise
+  // When filtered in stamp order
+  const FlightStats st = RunFlight(1, 20.0);
+  std::printf(
+      "[vehicle rms] position %.5f m (raw mocap %.5f m), velocity %.5f m/s (raw flow %.5f m/s)\n",
+      st.pos_rms, st.raw_pos_rms, st.vel_rms, st.raw_vel_rms);
+  // Then position beats the raw mocap and velocity is far below the raw optical flow
+  EXPECT_LT(st.pos_rms, st.raw_pos_rms);
+  EXPECT_LT(st.vel_rms, 0.3 * st.raw_vel_rms);
+  EXPECT_EQ(st.counters.Total(EkfStatus::kRejectedGated), 0);
+  EXPECT_EQ(st.counters.Total(EkfStatus::kNumericalError), 0);
+}
+
+TEST(VehicleEkfTest, AverageNeesInsideTwoSided95PercentBounds) {
+  // Given 24 Monte Carlo flights of 15 s (truth biases drawn from the prior, random walks
+  // with the filter's densities), NEES sampled every 1 s after a 3 s burn-in
+  constexpr int kRuns = 24;
+  double nees = 0, nees_pv = 0;
+  int n = 0;
+  for (int r = 0; r < kRuns; ++r) {
+    const FlightStats st = RunFlight(100 + r, 15.0);
+    nees += st.nees_sum;
+    nees_pv += st.nees_pv_sum;
+    n += st.nees_count;
+  }
+  nees /= n;
+  nees_pv /= n;
+  // When compared with the chi-square bounds of an average of n samples
+  double lo = 0, hi = 0, lo6 = 0, hi6 = 0;
+  testing::AverageNeesBounds(n, Idx::kSize, &lo, &hi);
+  testing::AverageNeesBounds(n, 6, &lo6, &hi6);
+  std::printf(
+      "[vehicle nees] %d samples: full state %.3f in [%.3f, %.3f]; p,v %.3f in [%.3f, %.3f]\n", n,
+      nees, lo, hi, nees_pv, lo6, hi6);
+  // Then the filter is consistent
+  EXPECT_GT(nees, lo);
+  EXPECT_LT(nees, hi);
+  EXPECT_GT(nees_pv, lo6);
+  EXPECT_LT(nees_pv, hi6);
+}
+
+// Take-off at 2 s, climb to 0.78 m, hover, descend at 0.3 m/s, touch down at kTouchdown
+// with a 0.05 s contact deceleration, rest on the ground.
+constexpr double kTakeoff = 2.0;
+constexpr double kTouchdown = 8.725;
+VerticalProfile TakeoffLandingProfile() {
+  VerticalProfile v;
+  v.origin = Vec3(0.3, -0.2, 0.0);
+  v.bumps = {{kTakeoff, 0.3, 4.0}, {3.3, 0.3, -4.0}, {6.0, 0.3, -2.0}, {kTouchdown, 0.05, 12.0}};
+  return v;
+}
+
+TEST(VehicleEkfTest, TakeoffAndLandingDetectedWithinTwoTenths) {
+  // Given a vertical flight starting and ending on the ground, default (landed) config
+  const VerticalProfile traj = TakeoffLandingProfile();
+  ASSERT_NEAR(traj.At(kTouchdown + 0.05).p.z(), 0.0, 1e-12);
+  const VehicleEkfConfig cfg;
+  std::mt19937 rng(3);
+  SensorStreamOptions opt;
+  opt.t1 = 11.0;
+  const SensorStream stream = GenerateVehicleStream(traj, cfg.sensors, opt, &rng);
+  VehicleEkf ekf(cfg, model::VehicleParams{});
+  // When processed, recording the stamp of each mode change
+  std::vector<std::pair<double, VehicleMode>> switches;
+  VehicleMode mode = VehicleMode::kLanded;
+  double max_pos_err = 0.0;
+  for (const Measurement& m : stream.measurements) {
+    ekf.Process(m);
+    if (ekf.initialized() && ekf.mode() != mode) {
+      mode = ekf.mode();
+      switches.emplace_back(m.stamp, mode);
+    }
+    if (ekf.initialized()) {
+      max_pos_err =
+          std::max(max_pos_err, (ekf.Estimate(m.stamp).position - traj.At(m.stamp).p).norm());
+    }
+  }
+  // Then exactly one take-off and one landing, each within 0.2 s of the truth
+  ASSERT_EQ(switches.size(), 2u);
+  std::printf("[vehicle modes] take-off detected %+.3f s, landing %+.3f s after truth\n",
+              switches[0].first - kTakeoff, switches[1].first - kTouchdown);
+  EXPECT_EQ(switches[0].second, VehicleMode::kFlying);
+  EXPECT_NEAR(switches[0].first, kTakeoff, 0.2);
+  EXPECT_EQ(switches[1].second, VehicleMode::kLanded);
+  EXPECT_NEAR(switches[1].first, kTouchdown, 0.2);
+  EXPECT_EQ(ekf.counters().mode_switches, 2);
+  // And the estimate stays close through both transitions
+  EXPECT_LT(max_pos_err, 0.02);
+  EXPECT_LT(ekf.Estimate(11.0).velocity.norm(), 0.01);
+}
+
+void ExpectSameFilter(const VehicleEkf& a, const VehicleEkf& b, double t) {
+  const VehicleEstimate ea = a.Estimate(t), eb = b.Estimate(t);
+  EXPECT_EQ(ea.mode, eb.mode);
+  EXPECT_LT((ea.x - eb.x).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_LT((ea.covariance - eb.covariance).cwiseAbs().maxCoeff(), 1e-9);
+  const EkfCounters ca = a.counters(), cb = b.counters();
+  EXPECT_EQ(ca.by_status, cb.by_status);
+  EXPECT_EQ(ca.mode_switches, cb.mode_switches);
+}
+
+TEST(VehicleEkfTest, LateAndOutOfOrderDeliveryEqualsInOrder) {
+  // Given streams with the configured latencies plus up to 40 ms of random jitter, so that
+  // deliveries are late and out of order; one flight with take-off and landing, one 3D
+  for (int scenario = 0; scenario < 2; ++scenario) {
+    const VerticalProfile vertical = TakeoffLandingProfile();
+    const LissajousTrajectory lissajous;
+    const testing::Trajectory& traj =
+        scenario == 0 ? static_cast<const testing::Trajectory&>(vertical) : lissajous;
+    VehicleEkfConfig cfg = scenario == 0 ? VehicleEkfConfig{} : FlyingConfig();
+    std::mt19937 rng(11 + scenario);
+    SensorStreamOptions opt;
+    opt.t1 = scenario == 0 ? 11.0 : 8.0;
+    opt.arrival_jitter = 0.04;
+    const SensorStream stream = GenerateVehicleStream(traj, cfg.sensors, opt, &rng);
+    const std::vector<Measurement> by_arrival = stream.ByArrival();
+    int out_of_order = 0;
+    for (std::size_t i = 1; i < by_arrival.size(); ++i) {
+      out_of_order += by_arrival[i].stamp < by_arrival[i - 1].stamp;
+    }
+    ASSERT_GT(out_of_order, 100);
+    // When one filter gets them by stamp and one by arrival
+    VehicleEkf in_order(cfg, model::VehicleParams{}), late(cfg, model::VehicleParams{});
+    for (const Measurement& m : stream.measurements) in_order.Process(m);
+    for (const Measurement& m : by_arrival) late.Process(m);
+    // Then both end with the same state, covariance, mode and counters
+    EXPECT_GT(late.counters().replays, 100);
+    EXPECT_EQ(late.counters().Total(EkfStatus::kRejectedTooOld), 0);
+    ExpectSameFilter(in_order, late, opt.t1);
+  }
+}
+
+TEST(VehicleEkfTest, MeasurementsOlderThanLagAreDroppedAndCounted) {
+  // Given a filter that has fused 5 s of flight
+  const VehicleEkfConfig cfg = FlyingConfig();
+  std::mt19937 rng(5);
+  SensorStreamOptions opt;
+  opt.t1 = 5.0;
+  const SensorStream stream = GenerateVehicleStream(LissajousTrajectory{}, cfg.sensors, opt, &rng);
+  VehicleEkf ekf(cfg, model::VehicleParams{});
+  for (const Measurement& m : stream.measurements) ekf.Process(m);
+  const VehicleEstimate before = ekf.Estimate(5.0);
+  // When a mocap fix 1 s old arrives
+  Measurement old = stream.measurements.front();
+  old.kind = SensorKind::kMocapPose;
+  old.stamp = 4.0;
+  old.position = Vec3(5, 5, 5);
+  old.euler = Vec3::Zero();
+  // Then it is dropped, counted, and the state is unchanged
+  EXPECT_EQ(ekf.Process(old), EkfStatus::kRejectedTooOld);
+  EXPECT_EQ(ekf.counters().Get(EkfStatus::kRejectedTooOld, SensorKind::kMocapPose), 1);
+  EXPECT_EQ((ekf.Estimate(5.0).x - before.x).norm(), 0.0);
+}
+
+TEST(VehicleEkfTest, OutliersAndInvalidMeasurementsRejectedAndCounted) {
+  // Given a 10 s flight where every 37th mocap fix is off by 0.3 m and every 23rd flow
+  // sample by 1 m/s, plus NaN, infinite and foreign-vehicle measurements
+  VehicleEkfConfig cfg = FlyingConfig();
+  cfg.vehicle = 0;
+  std::mt19937 rng(9);
+  SensorStreamOptions opt;
+  opt.t1 = 10.0;
+  const LissajousTrajectory traj;
+  SensorStream stream = GenerateVehicleStream(traj, cfg.sensors, opt, &rng);
+  int n_mocap = 0, n_flow = 0, bad_mocap = 0, bad_flow = 0;
+  for (Measurement& m : stream.measurements) {
+    if (m.kind == SensorKind::kMocapPose && ++n_mocap % 37 == 0 && m.stamp > 1.0) {
+      m.position += Vec3(0.2, -0.2, 0.1);
+      ++bad_mocap;
+    } else if (m.kind == SensorKind::kOpticalFlow && ++n_flow % 23 == 0 && m.stamp > 1.0) {
+      m.velocity += Vec3(0.0, 1.0, 0.0);
+      ++bad_flow;
+    }
+  }
+  VehicleEkf ekf(cfg, model::VehicleParams{});
+  double err2 = 0;
+  int n = 0, n_nonfinite = 0;
+  // When processed, with invalid samples interleaved
+  for (const Measurement& m : stream.measurements) {
+    ekf.Process(m);
+    if (m.stamp > 1.0) {
+      err2 += (ekf.Estimate(m.stamp).position - traj.At(m.stamp).p).squaredNorm();
+      ++n;
+    }
+    if (m.kind == SensorKind::kCompass && m.stamp > 5.0 && m.stamp < 5.1) {
+      Measurement nan = m;
+      nan.yaw = kNaN;
+      EXPECT_EQ(ekf.Process(nan), EkfStatus::kRejectedNonFinite);
+      Measurement inf = m;
+      inf.kind = SensorKind::kOpticalFlow;
+      inf.velocity = Vec3(0, kInf, 0);
+      EXPECT_EQ(ekf.Process(inf), EkfStatus::kRejectedNonFinite);
+      ++n_nonfinite;
+    }
+  }
+  Measurement foreign = stream.measurements.back();
+  foreign.vehicle = 1;
+  EXPECT_EQ(ekf.Process(foreign), EkfStatus::kRejectedInvalid);
+  EkfCounters cnt = ekf.counters();
+  // Then every injected outlier is gated and counted per sensor, nothing else is
+  std::printf("[vehicle outliers] mocap %lld/%d, flow %lld/%d gated; position rms %.5f m\n",
+              static_cast<long long>(cnt.Get(EkfStatus::kRejectedGated, SensorKind::kMocapPose)),
+              bad_mocap,
+              static_cast<long long>(cnt.Get(EkfStatus::kRejectedGated, SensorKind::kOpticalFlow)),
+              bad_flow, std::sqrt(err2 / n));
+  EXPECT_EQ(cnt.Get(EkfStatus::kRejectedGated, SensorKind::kMocapPose), bad_mocap);
+  EXPECT_EQ(cnt.Get(EkfStatus::kRejectedGated, SensorKind::kOpticalFlow), bad_flow);
+  EXPECT_EQ(cnt.Total(EkfStatus::kRejectedGated), bad_mocap + bad_flow);
+  EXPECT_EQ(cnt.Get(EkfStatus::kRejectedNonFinite, SensorKind::kCompass), n_nonfinite);
+  EXPECT_EQ(cnt.Get(EkfStatus::kRejectedNonFinite, SensorKind::kOpticalFlow), n_nonfinite);
+  EXPECT_GT(n_nonfinite, 0);
+  EXPECT_EQ(cnt.Total(EkfStatus::kRejectedInvalid), 1);
+  // And the estimate is not corrupted by them
+  EXPECT_LT(std::sqrt(err2 / n), 0.002);
+}
+
+}  // namespace
 }  // namespace fnmpc::estimation
