@@ -210,14 +210,15 @@ std::string World::BuildMjcf(const WorldConfig& c) {
     const std::array<std::array<double, 2>, 4> xy{{{a, -a}, {-a, a}, {a, a}, {-a, -a}}};
     for (int r = 0; r < 4; ++r) {
       const std::string px = Num(xy[r][0]), py = Num(xy[r][1]);
+      x << "      <geom name=\"" << n << "_foot" << r << "\" type=\"sphere\" size=\"" << kFootRadius
+        << "\" pos=\"" << px << " " << py << " " << Num(kFootZ) << "\"/>\n";
+      if (!c.visual_geometry) continue;
       x << "      <geom name=\"" << n << "_arm" << r
         << "\" type=\"capsule\" contype=\"0\" conaffinity=\"0\" size=\"0.01\" fromto=\"0 0 0 " << px
         << " " << py << " 0\"/>\n"
         << "      <geom name=\"" << n << "_rotor" << r
         << "\" type=\"cylinder\" contype=\"0\" conaffinity=\"0\" size=\"0.127 0.003\" pos=\"" << px
         << " " << py << " 0.03\" rgba=\"" << (r < 2 ? "0.2 0.4 0.9" : "0.9 0.3 0.2") << " 0.4\"/>\n"
-        << "      <geom name=\"" << n << "_foot" << r << "\" type=\"sphere\" size=\"" << kFootRadius
-        << "\" pos=\"" << px << " " << py << " " << Num(kFootZ) << "\"/>\n"
         << "      <site name=\"" << n << "_rotor" << r << "\" pos=\"" << px << " " << py
         << " 0.03\"/>\n";
     }

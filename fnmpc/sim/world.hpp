@@ -69,6 +69,9 @@ struct WorldConfig {
   double motor_time_constant = 0.02;  ///< first-order rotor speed lag [s]
   double gravity = kGravity;          ///< [m/s^2], along -z; 0 for a free body
   bool ground = true;                 ///< ground plane with contact at z = 0
+  /// Adds the contact-free arm, rotor-disc and rotor-site elements to the MJCF. They do not
+  /// change the physics (mass and inertia are explicit) but cost MuJoCo kinematics time.
+  bool visual_geometry = true;
   /// Body-axis quadratic drag coefficients [N s^2/m^2] (wind, gusts and downwash).
   Vec3 drag_coefficient{0.03, 0.03, 0.05};
   BatterySettings battery;
