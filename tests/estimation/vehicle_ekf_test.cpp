@@ -8,6 +8,8 @@
 #include <cstdlib>
 #include <new>
 #include <random>
+#include <stdexcept>
+#include <string>
 
 #include "synthetic_truth.hpp"
 
@@ -337,6 +339,186 @@ TEST(VehicleEkfTest, OutliersAndInvalidMeasurementsRejectedAndCounted) {
   EXPECT_EQ(cnt.Total(EkfStatus::kRejectedInvalid), 1);
   // And the estimate is not corrupted by them
   EXPECT_LT(std::sqrt(err2 / n), 0.002);
+}
+
+TEST(VehicleEkfTest, CommandModelTracksWithoutImu) {
+  // Given a vehicle flown open loop by commands at 50 Hz, truth integrated with the
+  // first-order attitude + thrust model (RK4, 1/3000 s), mocap/flow/compass sensors only
+  model::VehicleParams vp;
+  vp.bias.roll = 0.01;
+  VehicleEkfConfig cfg = FlyingConfig();
+  cfg.motion_model = MotionModel::kCommand;
+  cfg.command_accel_noise = 0.03;  // the truth follows the model exactly
+  cfg.command_attitude_noise = 0.01;
+  const SensorsConfig& sc = cfg.sensors;
+  constexpr int kSub = 3000;  // grid steps per second
+  const auto command = [&](double t) {
+    return Vec<4>(vp.mass * kGravity * (1.0 + 0.03 * std::sin(1.1 * t)), 0.06 * std::sin(0.8 * t),
+                  0.05 * std::sin(0.6 * t + 1.0), 0.3 * std::sin(0.2 * t));
+  };
+  VehicleStateVec x = VehicleStateVec::Zero();
+  x(Idx::kPos + 2) = 1.0;
+  std::vector<VehicleStateVec> truth;
+  const double h = 1.0 / kSub;
+  Vec<4> u = command(0.0);
+  for (int k = 0; k <= 10 * kSub; ++k) {
+    truth.push_back(x);
+    if (k % (kSub / 50) == 0) u = command(k * h);  // zero-order hold like the filter
+    const Vec3 refs = u.tail<3>();
+    const VehicleStateVec k1 = CommandFlow(x, u(0), refs, vp);
+    const VehicleStateVec k2 = CommandFlow(x + 0.5 * h * k1, u(0), refs, vp);
+    const VehicleStateVec k3 = CommandFlow(x + 0.5 * h * k2, u(0), refs, vp);
+    const VehicleStateVec k4 = CommandFlow(x + h * k3, u(0), refs, vp);
+    x += h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4);
+  }
+  VehicleEkf ekf(cfg, vp);
+  std::mt19937 rng(17);
+  double pos2 = 0, vel2 = 0, raw_pos2 = 0, raw_vel2 = 0;
+  int n_pos = 0, n_vel = 0;
+  // When commands and measurements are fed in stamp order
+  for (int k = 0; k <= 10 * kSub; ++k) {
+    const double t = k * h;
+    const VehicleStateVec& xt = truth[static_cast<std::size_t>(k)];
+    if (k % (kSub / 50) == 0) {
+      const Vec<4> c = command(t);
+      ASSERT_EQ(ekf.SetCommand(t, c(0), c(1), c(2), c(3)), EkfStatus::kAccepted);
+    }
+    Measurement m;
+    m.stamp = t;
+    if (k % (kSub / 60) == 7) {
+      m.kind = SensorKind::kMocapPose;
+      m.position = xt.segment<3>(Idx::kPos) + testing::Gaussian3(&rng, sc.mocap.noise);
+      m.euler = xt.segment<3>(Idx::kEuler) + testing::Gaussian3(&rng, sc.mocap.noise2);
+      ekf.Process(m);
+      if (t > 2.0) {
+        pos2 += (ekf.Estimate(t).position - xt.segment<3>(Idx::kPos)).squaredNorm();
+        raw_pos2 += (m.position - xt.segment<3>(Idx::kPos)).squaredNorm();
+        ++n_pos;
+      }
+    }
+    if (k % (kSub / 30) == 11) {
+      m.kind = SensorKind::kOpticalFlow;
+      m.velocity = xt.segment<3>(Idx::kVel) + testing::Gaussian3(&rng, sc.optical_flow.noise);
+      ekf.Process(m);
+      if (t > 2.0) {
+        vel2 += (ekf.Estimate(t).velocity - xt.segment<3>(Idx::kVel)).squaredNorm();
+        raw_vel2 += (m.velocity - xt.segment<3>(Idx::kVel)).squaredNorm();
+        ++n_vel;
+      }
+    }
+  }
+  const double pos_rms = std::sqrt(pos2 / n_pos), vel_rms = std::sqrt(vel2 / n_vel);
+  const double raw_pos = std::sqrt(raw_pos2 / n_pos), raw_vel = std::sqrt(raw_vel2 / n_vel);
+  std::printf("[vehicle command model] position %.5f m (raw %.5f), velocity %.5f m/s (raw %.5f)\n",
+              pos_rms, raw_pos, vel_rms, raw_vel);
+  // Then the estimate beats the raw sensors, far below for velocity
+  EXPECT_LT(pos_rms, raw_pos);
+  EXPECT_LT(vel_rms, 0.5 * raw_vel);
+  EXPECT_EQ(ekf.counters().commands, 501);
+}
+
+TEST(VehicleEkfTest, ImuDropoutGrowsCovarianceAndRecovers) {
+  // Given a flight whose IMU and flow stop for 2 s (mocap continues)
+  const VehicleEkfConfig cfg = FlyingConfig();
+  std::mt19937 rng(23);
+  SensorStreamOptions opt;
+  opt.t1 = 10.0;
+  const LissajousTrajectory traj;
+  const SensorStream stream = GenerateVehicleStream(traj, cfg.sensors, opt, &rng);
+  VehicleEkf ekf(cfg, model::VehicleParams{});
+  double var_before = 0, var_during = 0, max_err = 0;
+  // When processed
+  for (const Measurement& m : stream.measurements) {
+    const bool lost = m.stamp > 4.0 && m.stamp < 6.0 &&
+                      (m.kind == SensorKind::kImu || m.kind == SensorKind::kOpticalFlow);
+    if (!lost) ekf.Process(m);
+    const VehicleEstimate e = ekf.Estimate(m.stamp);
+    if (m.stamp < 4.0) var_before = e.covariance(Idx::kVel, Idx::kVel);
+    if (m.stamp < 6.0) var_during = e.covariance(Idx::kVel, Idx::kVel);
+    if (m.stamp > 1.0 && !lost) {
+      max_err = std::max(max_err, (e.position - traj.At(m.stamp).p).norm());
+    }
+  }
+  // Then the velocity variance grows (constant-velocity fallback), position stays bounded,
+  // and the end estimate is as good as before
+  EXPECT_GT(var_during, 5.0 * var_before);
+  EXPECT_LT(max_err, 0.01);
+  const VehicleEstimate end = ekf.Estimate(10.0);
+  EXPECT_LT((end.velocity - traj.At(10.0).v).norm(), 0.02);
+  EXPECT_EQ(ekf.counters().Total(EkfStatus::kNumericalError), 0);
+}
+
+TEST(VehicleEkfTest, NoHeapAllocationAfterConstruction) {
+  // Given a filter and a prepared stream with late deliveries
+  const VehicleEkfConfig cfg;
+  std::mt19937 rng(29);
+  SensorStreamOptions opt;
+  opt.t1 = 6.0;
+  opt.arrival_jitter = 0.04;
+  const std::vector<Measurement> ms =
+      GenerateVehicleStream(TakeoffLandingProfile(), cfg.sensors, opt, &rng).ByArrival();
+  VehicleEkf ekf(cfg, model::VehicleParams{});
+  // When processing, commanding and estimating
+  const std::size_t before = g_allocations;
+  double sum = 0.0;
+  for (const Measurement& m : ms) {
+    ekf.Process(m);
+    ekf.SetCommand(m.stamp, 13.0, 0.0, 0.0, 0.4);
+    sum += ekf.Estimate(m.stamp + 0.01).position.z();
+  }
+  // Then no operator new was called
+  EXPECT_EQ(g_allocations, before);
+  EXPECT_TRUE(std::isfinite(sum));
+  EXPECT_GT(ekf.counters().replays, 0);
+}
+
+TEST(VehicleEkfTest, InvalidConfigThrowsNamingTheField) {
+  // Given configs with one invalid value each / Then construction throws with the field
+  const auto message = [](const VehicleEkfConfig& c) {
+    try {
+      VehicleEkf ekf(c, model::VehicleParams{});
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  VehicleEkfConfig c;
+  c.max_lag = -0.1;
+  EXPECT_NE(message(c).find("[VehicleEkfConfig] max_lag"), std::string::npos);
+  c = VehicleEkfConfig{};
+  c.takeoff_height = 0.01;
+  EXPECT_NE(message(c).find("takeoff_height"), std::string::npos);
+  c = VehicleEkfConfig{};
+  c.sensors.mocap.noise.x() = 0.0;
+  EXPECT_NE(message(c).find("sensors.mocap"), std::string::npos);
+  c = VehicleEkfConfig{};
+  c.gate_probability = 1.0;
+  EXPECT_NE(message(c).find("gate_probability"), std::string::npos);
+  EXPECT_TRUE(message(VehicleEkfConfig{}).empty());
+}
+
+TEST(VehicleEkfTest, MeasurementsBeforeInitializationAreCounted) {
+  // Given a fresh filter
+  VehicleEkf ekf(VehicleEkfConfig{}, model::VehicleParams{});
+  Measurement imu;
+  imu.kind = SensorKind::kImu;
+  imu.stamp = 0.0;
+  imu.accel = Vec3(0, 0, kGravity);
+  imu.gyro = Vec3::Zero();
+  // When an IMU sample arrives before any mocap fix, then a fix
+  EXPECT_EQ(ekf.Process(imu), EkfStatus::kNotInitialized);
+  Measurement fix;
+  fix.kind = SensorKind::kMocapPose;
+  fix.stamp = 0.01;
+  fix.position = Vec3(1, 2, 0);
+  fix.euler = Vec3(0, 0, 0.5);
+  EXPECT_EQ(ekf.Process(fix), EkfStatus::kAccepted);
+  // Then the filter is initialised at the fix, landed, with {m} origin there
+  EXPECT_TRUE(ekf.initialized());
+  EXPECT_EQ(ekf.mode(), VehicleMode::kLanded);
+  EXPECT_EQ(ekf.counters().Get(EkfStatus::kNotInitialized, SensorKind::kImu), 1);
+  EXPECT_LT((ekf.mpc_origin() - Vec3(1, 2, 0)).norm(), 1e-15);
+  EXPECT_LT(ekf.Estimate(0.02).position_mpc.norm(), 1e-6);
 }
 
 }  // namespace
