@@ -251,8 +251,9 @@ TEST(NeighbourEkfTest, LateAndOutOfOrderDeliveryEqualsInOrder) {
   EXPECT_LT((in_order.covariance() - late.covariance()).cwiseAbs().maxCoeff(), 1e-9);
   EXPECT_EQ(in_order.counters().by_status, late.counters().by_status);
   // And a measurement older than the lag is dropped and counted
-  InputEvent old = sc.events[sc.events.size() / 2];
-  while (!old.is_measurement) old = sc.events[old.truth_index];  // any measurement
+  std::size_t mid = sc.events.size() / 2;
+  while (!sc.events[mid].is_measurement) ++mid;
+  const InputEvent& old = sc.events[mid];
   EXPECT_EQ(Feed(old, &late), EkfStatus::kRejectedTooOld);
   EXPECT_EQ(late.counters().Get(EkfStatus::kRejectedTooOld, SensorKind::kRelative), 1);
 }
