@@ -26,22 +26,22 @@ constexpr int kCutConstraints = 4;
 std::vector<DenseQp> MakeSequence(int nv, int nc, unsigned seed) {
   std::mt19937 rng(seed);
   DenseQp qp(DenseQpDims{nv, nc});
-  qp.H = testing::RandomSpd(nv, 0.1, &rng);
+  qp.H = testing::RandomSpd(nv, 1.0, &rng);
   qp.g = testing::Gaussian(nv, 1, &rng);
   const Eigen::VectorXd x_free = qp.H.ldlt().solve(-qp.g);
   qp.A = testing::Gaussian(nc, nv, &rng);
   const Eigen::VectorXd ax = qp.A * x_free;
   for (int i = 0; i < nc; ++i) {
     const double scale = qp.A.row(i).norm();
-    qp.lbA[i] = ax[i] - scale * testing::Uniform(0.5, 2.0, &rng);
-    qp.ubA[i] = ax[i] + scale * testing::Uniform(0.5, 2.0, &rng);
+    qp.lbA[i] = ax[i] - scale * testing::Uniform(1.0, 3.0, &rng);
+    qp.ubA[i] = ax[i] + scale * testing::Uniform(1.0, 3.0, &rng);
   }
   for (int i = 0; i < std::min(nc, kCutConstraints); ++i) {
     qp.ubA[i] = ax[i] - 0.1 * qp.A.row(i).norm();
   }
   for (int j = 0; j < nv; ++j) {
-    qp.lb[j] = x_free[j] - testing::Uniform(0.5, 2.0, &rng);
-    qp.ub[j] = x_free[j] + testing::Uniform(0.5, 2.0, &rng);
+    qp.lb[j] = x_free[j] - testing::Uniform(1.0, 3.0, &rng);
+    qp.ub[j] = x_free[j] + testing::Uniform(1.0, 3.0, &rng);
   }
   qp.ub[0] = x_free[0] - 0.05;
   qp.lb[1] = x_free[1] + 0.05;

@@ -2,8 +2,10 @@
 #include "fnmpc/qp/dense_qp.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Householder>
 #include <Eigen/Jacobi>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -19,10 +21,13 @@
 // Constraint ids are 0..nv-1 for bounds and nv..nv+nc-1 for general rows. The GI
 // multipliers u >= 0 satisfy H x + g = N u, hence y_id = -sign * u.
 //
-// With H = L L' the method keeps J = L^-T Q and an upper triangular R such that
-// J' N_active = [R; 0]. J1 = J(:, 0:q) and J2 = J(:, q:n). For a candidate
+// With H = L L' the method works with J = L^-T Q (Q orthogonal) and an upper triangular R
+// such that J' N_active = [R; 0]; J1 = J(:, 0:q), J2 = J(:, q:n). For a candidate
 // constraint p: d = J' n_p, primal step z = J2 d2, dual step r = R^-1 d1, and
-// n_p' z = |d2|^2. Adding/dropping a constraint updates J and R by Givens rotations.
+// n_p' z = |d2|^2. Adding/dropping a constraint updates Q and R by Givens rotations.
+// J is never formed: only Q is stored and L^-1, L^-T are applied by triangular solves.
+// This avoids the O(n^3) inverse of L when only a few constraints become active (with
+// no active constraint the cost is one Cholesky, two triangular solves and one pass).
 
 namespace fnmpc::qp {
 namespace {
@@ -35,6 +40,10 @@ constexpr double kDependencyTol = 1e-10;
 constexpr double kPivotTol = 1e-14;
 // Recomputations of (x, u) from the factorisation when no violated constraint remains.
 constexpr int kMaxRefinements = 3;
+
+// A full scan of the constraints remembers this many most violated ones; they are tried
+// (exact slack re-checked) before the next full scan, which saves passes over A.
+constexpr int kCandidates = 8;
 
 // Per-constraint state.
 constexpr signed char kInactive = 0;
@@ -102,9 +111,11 @@ struct DenseQpSolver::Workspace {
     return sign * nx - Rhs(id, sign);
   }
 
-  void FormJ();
-  // d = J' n, z = J2 d2, r = R^-1 d1; returns |d2|^2 and |d|^2.
-  void ComputeStep(int id, int sign, double* zn, double* dn2);
+  // Q = I at the first use in a solve.
+  void InitQ();
+  // d = J' n, z = J2 d2, r = R^-1 d1; returns |d2|^2 and |d|^2. With steps == false
+  // only d is computed (enough to append the constraint).
+  void ComputeStep(int id, int sign, double* zn, double* dn2, bool steps = true);
   // Index of the blocking active inequality (smallest u_k / r_k with r_k > 0), or -1.
   int BlockingConstraint(double* t1) const;
   void AppendActive(int id, int sign, double u_p);
@@ -112,8 +123,11 @@ struct DenseQpSolver::Workspace {
   // One GI major step for constraint (id, sign): partial steps/drops until added.
   // With warm_only no drop is allowed: the constraint is skipped instead.
   AddResult Add(int id, int sign, bool equality, bool warm_only);
-  // Most violated inactive constraint; returns false if none.
+  // Most violated inactive constraint (full scan); returns false if none. Also fills the
+  // candidate list with the next most violated ones.
   bool MostViolated(int* id, int* sign);
+  // Next candidate of the last scan that is still inactive and violated.
+  bool NextCandidate(int* id, int* sign);
   // Recompute x and u from the factorisation of the active set; with clamp, negative
   // inequality multipliers (round-off) are set to zero.
   void Refine(bool clamp);
@@ -129,13 +143,18 @@ struct DenseQpSolver::Workspace {
   const DenseQp* qp_ = nullptr;
 
   Eigen::LLT<Eigen::MatrixXd> llt;
-  Eigen::MatrixXd J;  // nv x nv
+  Eigen::MatrixXd Q;  // nv x nv orthogonal, J = L^-T Q
   Eigen::MatrixXd R;  // nv x nv, upper triangular block q x q is used
-  Eigen::VectorXd x, d, z, r, u, w, v, row;
-  Eigen::VectorXd ax;  // nc
+  Eigen::VectorXd x, d, z, r, u, w, v, lt;
+  Eigen::VectorXd ax;  // nc, A x at the last scan
+  std::array<int, kCandidates> cand_id{};
+  std::array<int, kCandidates> cand_sign{};
+  std::array<double, kCandidates> cand_violation{};
+  int cand_count = 0;
+  int cand_pos = 0;
 
   int q = 0;  // number of active constraints
-  bool j_ready = false;
+  bool q_ready = false;
   std::vector<int> active_id, active_sign;
   std::vector<signed char> active_eq;
   std::vector<signed char> state;  // nv + nc
@@ -154,7 +173,7 @@ DenseQpSolver::Workspace::Workspace(const DenseQpDims& dims, const QpSettings& s
       nc(dims.nc),
       settings(s),
       llt(dims.nv),
-      J(dims.nv, dims.nv),
+      Q(dims.nv, dims.nv),
       R(dims.nv, dims.nv),
       x(dims.nv),
       d(dims.nv),
@@ -163,7 +182,7 @@ DenseQpSolver::Workspace::Workspace(const DenseQpDims& dims, const QpSettings& s
       u(dims.nv),
       w(dims.nv),
       v(dims.nv),
-      row(dims.nv),
+      lt(dims.nv),
       ax(dims.nc),
       active_id(dims.nv),
       active_sign(dims.nv),
@@ -171,7 +190,7 @@ DenseQpSolver::Workspace::Workspace(const DenseQpDims& dims, const QpSettings& s
       state(dims.nv + dims.nc),
       prev_id(dims.nv),
       prev_sign(dims.nv) {
-  J.setZero();
+  Q.setZero();
   R.setZero();
   x.setZero();
   d.setZero();
@@ -180,7 +199,7 @@ DenseQpSolver::Workspace::Workspace(const DenseQpDims& dims, const QpSettings& s
   u.setZero();
   w.setZero();
   v.setZero();
-  row.setZero();
+  lt.setZero();
   ax.setZero();
   // Run one factorisation so that the LLT object owns its storage.
   llt.compute(Eigen::MatrixXd::Identity(nv, nv));
@@ -192,7 +211,10 @@ QpStatus DenseQpSolver::Workspace::Validate(const DenseQp& qp) const {
       qp.lbA.size() != nc || qp.ubA.size() != nc) {
     return QpStatus::kInvalidInput;
   }
-  if (!qp.H.allFinite() || !qp.g.allFinite() || (nc > 0 && !qp.A.allFinite())) {
+  // Fast path: a vectorised sum is finite iff no entry is NaN/Inf (barring overflow,
+  // in which case the exact element-wise check decides).
+  const auto finite = [](const auto& m) { return std::isfinite(m.sum()) || m.allFinite(); };
+  if (!finite(qp.H) || !finite(qp.g) || (nc > 0 && !finite(qp.A))) {
     return QpStatus::kNumericalError;
   }
   const auto check_sides = [](double lo, double hi) {
@@ -211,30 +233,40 @@ QpStatus DenseQpSolver::Workspace::Validate(const DenseQp& qp) const {
   return QpStatus::kOptimal;
 }
 
-void DenseQpSolver::Workspace::FormJ() {
-  // J = L^-T (Q = I): upper triangular inverse of L'.
-  J.setIdentity();
-  llt.matrixU().solveInPlace(J);
-  j_ready = true;
+void DenseQpSolver::Workspace::InitQ() {
+  Q.setIdentity();
+  q_ready = true;
 }
 
-void DenseQpSolver::Workspace::ComputeStep(int id, int sign, double* zn, double* dn2) {
+void DenseQpSolver::Workspace::ComputeStep(int id, int sign, double* zn, double* dn2, bool steps) {
+  // lt = L^-1 n (for n = +-e_j only rows j.. are nonzero), d = Q' lt.
+  const auto& l = llt.matrixLLT();
   if (id < nv) {
-    d = static_cast<double>(sign) * J.row(id).transpose();
+    lt.head(id).setZero();
+    lt.tail(nv - id).setZero();
+    lt[id] = static_cast<double>(sign);
+    l.bottomRightCorner(nv - id, nv - id)
+        .triangularView<Eigen::Lower>()
+        .solveInPlace(lt.tail(nv - id));
   } else {
-    row = qp_->A.row(id - nv).transpose();
-    d.noalias() = J.transpose() * row;
-    if (sign < 0) d = -d;
+    lt = static_cast<double>(sign) * qp_->A.row(id - nv).transpose();
+    l.triangularView<Eigen::Lower>().solveInPlace(lt);
   }
+  d.noalias() = Q.transpose() * lt;
   const int m = nv - q;
+  *dn2 = d.squaredNorm();
+  if (!steps) {
+    *zn = m > 0 ? d.tail(m).squaredNorm() : 0.0;
+    return;
+  }
   if (m > 0) {
-    z.noalias() = J.rightCols(m) * d.tail(m);
+    z.noalias() = Q.rightCols(m) * d.tail(m);
+    l.transpose().triangularView<Eigen::Upper>().solveInPlace(z);
     *zn = d.tail(m).squaredNorm();
   } else {
     z.setZero();
     *zn = 0.0;
   }
-  *dn2 = d.squaredNorm();
   if (q > 0) {
     r.head(q) = d.head(q);
     R.topLeftCorner(q, q).triangularView<Eigen::Upper>().solveInPlace(r.head(q));
@@ -257,15 +289,16 @@ int DenseQpSolver::Workspace::BlockingConstraint(double* t1) const {
 }
 
 void DenseQpSolver::Workspace::AppendActive(int id, int sign, double u_p) {
-  // Rotate d(q:n) onto its first entry; J <- J G keeps J' n_p = d.
-  for (int k = nv - 1; k > q; --k) {
-    if (d[k] == 0.0) continue;
-    Eigen::JacobiRotation<double> rot;
-    double rho = 0.0;
-    rot.makeGivens(d[k - 1], d[k], &rho);
-    d[k - 1] = rho;
-    d[k] = 0.0;
-    J.applyOnTheRight(k - 1, k, rot);
+  // One Householder reflection P maps d(q:n) onto beta e_1; Q2 <- Q2 P keeps J' n_p = d
+  // (two vectorised passes over Q2 instead of n - q Givens rotations).
+  const int m = nv - q;
+  if (m > 1) {
+    double tau = 0.0;
+    double beta = 0.0;
+    d.tail(m).makeHouseholderInPlace(tau, beta);
+    Q.rightCols(m).applyHouseholderOnTheRight(d.tail(m - 1), tau, w.data());
+    d[q] = beta;
+    d.tail(m - 1).setZero();
   }
   R.col(q).head(q + 1) = d.head(q + 1);
   active_id[q] = id;
@@ -287,7 +320,7 @@ void DenseQpSolver::Workspace::DropActive(int k) {
     active_eq[c] = active_eq[c + 1];
     u[c] = u[c + 1];
   }
-  // Restore the triangle with rotations of rows (j, j+1); J <- J G keeps J' N = [R; 0].
+  // Restore the triangle with rotations of rows (j, j+1); Q <- Q G keeps J' N = [R; 0].
   for (int j = k; j < q - 1; ++j) {
     Eigen::JacobiRotation<double> rot;
     double rho = 0.0;
@@ -296,7 +329,7 @@ void DenseQpSolver::Workspace::DropActive(int k) {
     R(j + 1, j) = 0.0;
     const int tail = q - 2 - j;
     if (tail > 0) R.middleCols(j + 1, tail).applyOnTheLeft(j, j + 1, rot.adjoint());
-    J.applyOnTheRight(j, j + 1, rot);
+    Q.applyOnTheRight(j, j + 1, rot);
   }
   --q;
   R.col(q).setZero();
@@ -351,23 +384,27 @@ AddResult DenseQpSolver::Workspace::Add(int id, int sign, bool equality, bool wa
 }
 
 bool DenseQpSolver::Workspace::MostViolated(int* id, int* sign) {
-  double best = 0.0;
-  int best_id = -1;
-  int best_sign = 0;
+  cand_count = 0;
+  cand_pos = 0;
+  // Keeps cand_* sorted by decreasing violation (insertion into a short list).
+  const auto push = [this](int c, int sgn, double violation) {
+    if (cand_count == kCandidates && violation <= cand_violation[kCandidates - 1]) return;
+    int k = cand_count < kCandidates ? cand_count++ : kCandidates - 1;
+    for (; k > 0 && cand_violation[k - 1] < violation; --k) {
+      cand_id[k] = cand_id[k - 1];
+      cand_sign[k] = cand_sign[k - 1];
+      cand_violation[k] = cand_violation[k - 1];
+    }
+    cand_id[k] = c;
+    cand_sign[k] = sgn;
+    cand_violation[k] = violation;
+  };
   const auto consider = [&](int c, double value, double lo, double hi) {
     if (state[c] != kInactive) return;
     const double below = lo - value;
-    if (below > best && below > ViolationTol(lo)) {
-      best = below;
-      best_id = c;
-      best_sign = 1;
-    }
+    if (below > ViolationTol(lo)) push(c, 1, below);
     const double above = value - hi;
-    if (above > best && above > ViolationTol(hi)) {
-      best = above;
-      best_id = c;
-      best_sign = -1;
-    }
+    if (above > ViolationTol(hi)) push(c, -1, above);
   };
   const DenseQp& qp = *qp_;
   for (int j = 0; j < nv; ++j) consider(j, x[j], qp.lb[j], qp.ub[j]);
@@ -375,19 +412,40 @@ bool DenseQpSolver::Workspace::MostViolated(int* id, int* sign) {
     ax.noalias() = qp.A * x;
     for (int i = 0; i < nc; ++i) consider(nv + i, ax[i], qp.lbA[i], qp.ubA[i]);
   }
-  *id = best_id;
-  *sign = best_sign;
-  return best_id >= 0;
+  if (cand_count == 0) return false;
+  *id = cand_id[0];
+  *sign = cand_sign[0];
+  cand_pos = 1;
+  return true;
+}
+
+bool DenseQpSolver::Workspace::NextCandidate(int* id, int* sign) {
+  while (cand_pos < cand_count) {
+    const int c = cand_id[cand_pos];
+    const int sgn = cand_sign[cand_pos];
+    ++cand_pos;
+    if (state[c] != kInactive) continue;
+    if (Slack(c, sgn) < -ViolationTol(Rhs(c, sgn))) {
+      *id = c;
+      *sign = sgn;
+      return true;
+    }
+  }
+  return false;
 }
 
 void DenseQpSolver::Workspace::Refine(bool clamp) {
   // x = J1 R^-T b_A - J2 J2' g and u = R^-1 (R^-T b_A + J1' g).
   for (int k = 0; k < q; ++k) v[k] = Rhs(active_id[k], active_sign[k]);
   R.topLeftCorner(q, q).transpose().triangularView<Eigen::Lower>().solveInPlace(v.head(q));
-  w.noalias() = J.transpose() * qp_->g;
+  const auto& l = llt.matrixLLT();
+  lt = qp_->g;
+  l.triangularView<Eigen::Lower>().solveInPlace(lt);
+  w.noalias() = Q.transpose() * lt;
   const int m = nv - q;
-  x.noalias() = J.leftCols(q) * v.head(q);
-  if (m > 0) x.noalias() -= J.rightCols(m) * w.tail(m);
+  x.noalias() = Q.leftCols(q) * v.head(q);
+  if (m > 0) x.noalias() -= Q.rightCols(m) * w.tail(m);
+  l.transpose().triangularView<Eigen::Upper>().solveInPlace(x);
   u.head(q) = v.head(q) + w.head(q);
   R.topLeftCorner(q, q).triangularView<Eigen::Upper>().solveInPlace(u.head(q));
   if (!clamp) return;
@@ -405,10 +463,10 @@ AddResult DenseQpSolver::Workspace::WarmStartBatch() {
     const int sign = prev_sign[k];
     if (state[id] != kInactive || IsEquality(id) || !std::isfinite(Rhs(id, sign))) continue;
     if (iterations >= settings.max_iterations) return AddResult::kMaxIterations;
-    if (!j_ready) FormJ();
+    if (!q_ready) InitQ();
     double zn = 0.0;
     double dn2 = 0.0;
-    ComputeStep(id, sign, &zn, &dn2);
+    ComputeStep(id, sign, &zn, &dn2, /*steps=*/false);
     if (!(zn > kDependencyTol * kDependencyTol * dn2) || !(zn > 0.0)) continue;
     AppendActive(id, sign, 0.0);
     ++warm_adds;
@@ -444,7 +502,7 @@ AddResult DenseQpSolver::Workspace::WarmStartSequential() {
     const double b = Rhs(id, sign);
     if (!std::isfinite(b)) continue;
     if (!(Slack(id, sign) < -ViolationTol(b))) continue;
-    if (!j_ready) FormJ();
+    if (!q_ready) InitQ();
     const AddResult a = Add(id, sign, /*equality=*/false, /*warm_only=*/true);
     if (a == AddResult::kAdded) ++warm_adds;
     if (a == AddResult::kInfeasible || a == AddResult::kMaxIterations) return a;
@@ -473,7 +531,9 @@ void DenseQpSolver::Workspace::WriteSolution(QpSolution* sol) {
 QpStatus DenseQpSolver::Workspace::Run(const DenseQp& qp, QpSolution* sol) {
   qp_ = &qp;
   q = 0;
-  j_ready = false;
+  q_ready = false;
+  cand_count = 0;
+  cand_pos = 0;
   iterations = 0;
   drops = 0;
   warm_adds = 0;
@@ -498,7 +558,7 @@ QpStatus DenseQpSolver::Workspace::Run(const DenseQp& qp, QpSolution* sol) {
   // Phase 1: equalities are always active (sign chosen so that the slack is <= 0).
   for (int id = 0; id < nv + nc; ++id) {
     if (!IsEquality(id)) continue;
-    if (!j_ready) FormJ();
+    if (!q_ready) InitQ();
     const int sign = Slack(id, 1) > 0.0 ? -1 : 1;
     const AddResult a = Add(id, sign, /*equality=*/true, /*warm_only=*/false);
     if (a == AddResult::kInfeasible || a == AddResult::kMaxIterations) return fail(a);
@@ -506,28 +566,40 @@ QpStatus DenseQpSolver::Workspace::Run(const DenseQp& qp, QpSolution* sol) {
 
   // Phase 2: warm start from the previous active inequalities, in order, as long as each
   // addition is a full step that keeps the multipliers dual feasible.
+  bool refined = false;  // (x, u) freshly recomputed from the factorisation
   if (settings.warm_start && prev_count > 0) {
     const AddResult a = settings.warm_start_batch ? WarmStartBatch() : WarmStartSequential();
     if (a == AddResult::kInfeasible || a == AddResult::kMaxIterations) return fail(a);
+    refined = settings.warm_start_batch && a == AddResult::kAdded;
   }
 
   // Phase 3: GI major iterations on the most violated constraint.
+  // When no violated constraint is left, (x, u) is recomputed once from the factorisation
+  // (removes the drift of the incremental steps) and checked again.
   int refinements = 0;
   const int max_scans = 2 * settings.max_iterations + 2 * (nv + nc) + 10;
   for (int scan = 0; scan < max_scans; ++scan) {
     int id = -1;
     int sign = 0;
-    if (!MostViolated(&id, &sign)) {
-      if (q == 0 || refinements >= kMaxRefinements) {
+    if (!NextCandidate(&id, &sign) && !MostViolated(&id, &sign)) {
+      bool done = q == 0 || refined || refinements >= kMaxRefinements;
+      if (!done) {
+        ++refinements;
+        refined = true;
+        z = x;
+        Refine(/*clamp=*/true);
+        // A refinement that moved x by less than the tolerance needs no new scan.
+        done = (x - z).lpNorm<Eigen::Infinity>() <= settings.tolerance;
+      }
+      if (done) {
         if (!x.allFinite() || !u.head(q).allFinite()) return QpStatus::kNumericalError;
         WriteSolution(sol);
         return QpStatus::kOptimal;
       }
-      ++refinements;
-      Refine(/*clamp=*/true);
       continue;
     }
-    if (!j_ready) FormJ();
+    refined = false;
+    if (!q_ready) InitQ();
     const AddResult a = Add(id, sign, /*equality=*/false, /*warm_only=*/false);
     if (a == AddResult::kInfeasible || a == AddResult::kMaxIterations) return fail(a);
   }

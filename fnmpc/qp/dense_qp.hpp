@@ -72,6 +72,15 @@ struct QpSettings {
 /// Dual active-set solver (Goldfarb-Idnani) for DenseQp, warm-started from the previous
 /// active set. Workspace is sized at construction: Solve() performs no heap allocation.
 /// Never throws in Solve(): every failure is a status, and x is never NaN on kOptimal.
+///
+/// Inputs: a DenseQp of the constructor's dims. Outputs: x, multipliers (sign convention
+/// of QpSolution), objective and counters. On kInfeasible / kMaxIterations x holds the
+/// last (finite) iterate and the multipliers are zero; on the other failures x is zero.
+/// Equalities (lb == ub) are made active first and never dropped; linearly dependent,
+/// consistent equalities are skipped. The warm start (settings.warm_start) reuses the
+/// inequalities active at the end of the last kOptimal solve, see
+/// QpSettings::warm_start_batch; the GI iterations that follow make the result
+/// independent of the warm start (up to degenerate ties).
 class DenseQpSolver {
  public:
   DenseQpSolver(const DenseQpDims& dims, const QpSettings& settings = {});
