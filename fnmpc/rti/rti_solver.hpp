@@ -143,6 +143,14 @@ class RtiSolver {
     prepared_ = false;
   }
 
+  /// Adds `delta` to every node of the state guess. Used by the reduced follower, whose
+  /// displacement state restarts at zero every sampling time (a translation of the guess
+  /// leaves the linearisation of a translation-invariant problem unchanged).
+  void OffsetGuess(const X& delta) {
+    for (X& x : x_) x += delta;
+    prepared_ = false;
+  }
+
   /// Linearise and condense around the current guess (the preparation phase).
   /// Returns false when the linearisation produced NaN/Inf.
   bool Prepare() {
