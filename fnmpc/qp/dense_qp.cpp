@@ -49,6 +49,7 @@ constexpr int kCandidates = 8;
 constexpr signed char kInactive = 0;
 constexpr signed char kActive = 1;
 constexpr signed char kRedundant = 2;  // equality implied by other active equalities
+constexpr signed char kDeferred = 3;   // inequality implied by the active set until a drop
 
 // Outcome of an attempt to add one constraint.
 enum class AddResult { kAdded, kSkipped, kInfeasible, kMaxIterations };
@@ -151,10 +152,10 @@ struct DenseQpSolver::Workspace {
   std::array<int, kCandidates> cand_sign{};
   std::array<double, kCandidates> cand_violation{};
   int cand_count = 0;
-  int cand_pos = 0;
 
   int q = 0;  // number of active constraints
   bool q_ready = false;
+  bool has_deferred = false;  // some state is kDeferred
   std::vector<int> active_id, active_sign;
   std::vector<signed char> active_eq;
   std::vector<signed char> state;  // nv + nc
@@ -312,6 +313,13 @@ void DenseQpSolver::Workspace::AppendActive(int id, int sign, double u_p) {
 
 void DenseQpSolver::Workspace::DropActive(int k) {
   state[active_id[k]] = kInactive;
+  if (has_deferred) {
+    // Implied inequalities may matter again once the active set shrinks.
+    for (auto& st : state) {
+      if (st == kDeferred) st = kInactive;
+    }
+    has_deferred = false;
+  }
   // Remove column k of R: columns k+1.. shift left and form an upper Hessenberg block.
   for (int c = k; c < q - 1; ++c) {
     R.col(c).head(c + 2) = R.col(c + 1).head(c + 2);
@@ -352,9 +360,24 @@ AddResult DenseQpSolver::Workspace::Add(int id, int sign, bool equality, bool wa
     const bool dependent = !(zn > kDependencyTol * kDependencyTol * dn2) || !(zn > 0.0);
     if (dependent) {
       if (k < 0) {
-        // n_p = N r with r <= 0 on inequalities: n_p' x <= const < b_p on the feasible set.
-        if (-s <= tol) {
-          if (equality) state[id] = kRedundant;
+        // n_p = N r with r <= 0 on the active inequalities, so every feasible x has
+        // n_p' x <= r' b_A. The certificate uses the data only (not the drifting x):
+        // r' b_A < b_p means infeasible, otherwise p is implied by the active set.
+        const double b_p = Rhs(id, sign);
+        double rho = -b_p;
+        double scale = 1.0 + std::abs(b_p);
+        for (int j = 0; j < q; ++j) {
+          const double term = r[j] * Rhs(active_id[j], active_sign[j]);
+          rho += term;
+          scale += std::abs(term);
+        }
+        if (!(rho < -settings.tolerance * scale) || -s <= tol) {
+          if (equality) {
+            state[id] = kRedundant;
+          } else {
+            state[id] = kDeferred;
+            has_deferred = true;
+          }
           return AddResult::kSkipped;
         }
         return AddResult::kInfeasible;
@@ -385,7 +408,6 @@ AddResult DenseQpSolver::Workspace::Add(int id, int sign, bool equality, bool wa
 
 bool DenseQpSolver::Workspace::MostViolated(int* id, int* sign) {
   cand_count = 0;
-  cand_pos = 0;
   // Keeps cand_* sorted by decreasing violation (insertion into a short list).
   const auto push = [this](int c, int sgn, double violation) {
     if (cand_count == kCandidates && violation <= cand_violation[kCandidates - 1]) return;
@@ -415,23 +437,28 @@ bool DenseQpSolver::Workspace::MostViolated(int* id, int* sign) {
   if (cand_count == 0) return false;
   *id = cand_id[0];
   *sign = cand_sign[0];
-  cand_pos = 1;
   return true;
 }
 
 bool DenseQpSolver::Workspace::NextCandidate(int* id, int* sign) {
-  while (cand_pos < cand_count) {
-    const int c = cand_id[cand_pos];
-    const int sgn = cand_sign[cand_pos];
-    ++cand_pos;
-    if (state[c] != kInactive) continue;
-    if (Slack(c, sgn) < -ViolationTol(Rhs(c, sgn))) {
-      *id = c;
-      *sign = sgn;
-      return true;
+  // Most violated of the remembered candidates at the current x (exact slacks).
+  double best = 0.0;
+  int best_k = -1;
+  for (int k = 0; k < cand_count; ++k) {
+    const int c = cand_id[k];
+    if (c < 0 || state[c] != kInactive) continue;
+    const double s = Slack(c, cand_sign[k]);
+    if (-s > ViolationTol(Rhs(c, cand_sign[k])) && -s > best) {
+      best = -s;
+      best_k = k;
+    } else if (!(-s > 0.0)) {
+      cand_id[k] = -1;  // satisfied now: forget it until the next scan
     }
   }
-  return false;
+  if (best_k < 0) return false;
+  *id = cand_id[best_k];
+  *sign = cand_sign[best_k];
+  return true;
 }
 
 void DenseQpSolver::Workspace::Refine(bool clamp) {
@@ -532,8 +559,8 @@ QpStatus DenseQpSolver::Workspace::Run(const DenseQp& qp, QpSolution* sol) {
   qp_ = &qp;
   q = 0;
   q_ready = false;
+  has_deferred = false;
   cand_count = 0;
-  cand_pos = 0;
   iterations = 0;
   drops = 0;
   warm_adds = 0;

@@ -5,6 +5,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
+#include <Eigen/QR>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -248,6 +249,67 @@ TEST(DenseQpSolverTest, RedundantEqualityRowsAreSkipped) {
   EXPECT_LE(CheckKkt(qp, sol).Max(), kKktTol);
 }
 
+TEST(DenseQpSolverTest, IllConditionedHessian) {
+  // Given: H = V diag(lambda) V' with lambda log-uniform in [1e-6, 1e2] (condition ~1e8)
+  std::mt19937 rng(33);
+  const int nv = 30;
+  const int nc = 60;
+  for (int trial = 0; trial < 10; ++trial) {
+    DenseQp qp = RandomFeasibleQp(nv, nc, &rng);
+    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(Gaussian(nv, nv, &rng));
+    const Eigen::MatrixXd v = qr.householderQ();
+    Eigen::VectorXd lambda(nv);
+    for (int i = 0; i < nv; ++i) lambda[i] = std::pow(10.0, testing::Uniform(-6.0, 2.0, &rng));
+    qp.H = v * lambda.asDiagonal() * v.transpose();
+    qp.H = 0.5 * (qp.H + qp.H.transpose()).eval();
+    DenseQpSolver solver(qp.dims());
+    QpSolution sol(qp.dims());
+    // When
+    ASSERT_EQ(solver.Solve(qp, &sol), QpStatus::kOptimal) << "trial " << trial;
+    // Then: KKT holds; stationarity relative to the size of its terms
+    const auto kkt = CheckKkt(qp, sol);
+    const double scale = 1.0 + qp.g.lpNorm<Eigen::Infinity>() +
+                         qp.H.lpNorm<Eigen::Infinity>() * sol.x.lpNorm<Eigen::Infinity>();
+    EXPECT_LE(kkt.stationarity / scale, kKktTol) << "trial " << trial;
+    EXPECT_LE(kkt.primal, kKktTol) << "trial " << trial;
+    EXPECT_LE(kkt.dual, kKktTol) << "trial " << trial;
+    EXPECT_LE(kkt.complementarity / scale, kKktTol) << "trial " << trial;
+  }
+}
+
+TEST(DenseQpSolverTest, LowRankConstraintsWithRedundantEqualities) {
+  // Given: A of rank nv/3 (many linearly dependent rows), a fifth of them equalities,
+  // all consistent (x = 0 is feasible)
+  std::mt19937 rng(35);
+  const int nv = 45;
+  const int nc = 135;
+  for (int trial = 0; trial < 10; ++trial) {
+    DenseQp qp(DenseQpDims{nv, nc});
+    qp.H = RandomSpd(nv, 0.1, &rng);
+    qp.g = 10.0 * Gaussian(nv, 1, &rng);
+    qp.A = Gaussian(nc, nv / 3, &rng) * Gaussian(nv / 3, nv, &rng);
+    for (int i = 0; i < nc; ++i) {
+      if (testing::Uniform(0.0, 1.0, &rng) < 0.2) {
+        qp.lbA[i] = qp.ubA[i] = 0.0;
+      } else {
+        qp.lbA[i] = -testing::Uniform(0.0, 1.0, &rng);
+        qp.ubA[i] = testing::Uniform(0.0, 1.0, &rng);
+      }
+    }
+    for (int j = 0; j < nv; ++j) {
+      qp.lb[j] = -testing::Uniform(0.0, 1.0, &rng);
+      qp.ub[j] = testing::Uniform(0.0, 1.0, &rng);
+    }
+    DenseQpSolver solver(qp.dims());
+    QpSolution sol(qp.dims());
+    // When
+    ASSERT_EQ(solver.Solve(qp, &sol), QpStatus::kOptimal) << "trial " << trial;
+    // Then
+    EXPECT_LE(CheckKkt(qp, sol).Max(), kKktTol) << "trial " << trial;
+    EXPECT_LE(sol.objective, 1e-9);  // x = 0 is feasible with objective 0
+  }
+}
+
 // ---------------------------------------------------------------------------------------
 // Infeasible problems.
 
@@ -322,6 +384,33 @@ TEST(DenseQpSolverTest, InfeasibleRandomQpThenRecovers) {
   EXPECT_TRUE(sol.x.allFinite());
   ASSERT_EQ(solver.Solve(base, &sol), QpStatus::kOptimal);
   EXPECT_LE(CheckKkt(base, sol).Max(), kKktTol);
+}
+
+TEST(DenseQpSolverTest, RandomInfeasibleFamilies) {
+  // Given: feasible random QPs made infeasible by a row that contradicts another one by
+  // 1e-4..1 (scaled copy) or by a sum row above the sum of the upper bounds
+  std::mt19937 rng(47);
+  int checked = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    RandomQpOptions opt;
+    opt.one_sided_share = 0.0;
+    DenseQp qp = RandomFeasibleQp(20, 30, &rng, opt);
+    const double gap = std::pow(10.0, testing::Uniform(-4.0, 0.0, &rng));
+    if (trial % 2 == 0) {
+      const double scale = testing::Uniform(0.5, 2.0, &rng);
+      qp.A.row(7) = scale * qp.A.row(3);
+      qp.lbA[7] = scale * qp.ubA[3] + gap;
+      qp.ubA[7] = kInfBound;
+    } else {
+      qp.A.row(0).setOnes();
+      qp.lbA[0] = qp.ub.sum() + gap;
+      qp.ubA[0] = kInfBound;
+    }
+    // When / Then
+    ExpectInfeasible(qp);
+    ++checked;
+  }
+  EXPECT_EQ(checked, 40);
 }
 
 // ---------------------------------------------------------------------------------------
