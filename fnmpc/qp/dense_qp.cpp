@@ -100,15 +100,15 @@ struct DenseQpSolver::Workspace {
   // Data checks; kOptimal means "valid".
   QpStatus Validate(const DenseQp& qp) const;
   // Lower / upper bound value of constraint id.
-  double Lower(int id) const { return id < nv ? qp_->lb[id] : qp_->lbA[id - nv]; }
-  double Upper(int id) const { return id < nv ? qp_->ub[id] : qp_->ubA[id - nv]; }
+  double Lower(int id) const { return id < nv ? problem->lb[id] : problem->lbA[id - nv]; }
+  double Upper(int id) const { return id < nv ? problem->ub[id] : problem->ubA[id - nv]; }
   bool IsEquality(int id) const { return Lower(id) == Upper(id); }
   // Right-hand side b of the half-space n' x >= b with n = sign * (e_id or A_id').
   double Rhs(int id, int sign) const { return sign > 0 ? Lower(id) : -Upper(id); }
   double ViolationTol(double b) const { return settings.tolerance * (1.0 + std::abs(b)); }
   // n' x - b at the current x.
   double Slack(int id, int sign) const {
-    const double nx = id < nv ? x[id] : qp_->A.row(id - nv).dot(x);
+    const double nx = id < nv ? x[id] : problem->A.row(id - nv).dot(x);
     return sign * nx - Rhs(id, sign);
   }
 
@@ -129,6 +129,12 @@ struct DenseQpSolver::Workspace {
   bool MostViolated(int* id, int* sign);
   // Next candidate of the last scan that is still inactive and violated.
   bool NextCandidate(int* id, int* sign);
+  // Round-off: inequality multipliers that went below zero are set to zero.
+  void ClampMultipliers() {
+    for (int j = 0; j < q; ++j) {
+      if (!active_eq[j] && u[j] < 0.0) u[j] = 0.0;
+    }
+  }
   // Recompute x and u from the factorisation of the active set; with clamp, negative
   // inequality multipliers (round-off) are set to zero.
   void Refine(bool clamp);
@@ -141,7 +147,7 @@ struct DenseQpSolver::Workspace {
   int nv;
   int nc;
   QpSettings settings;
-  const DenseQp* qp_ = nullptr;
+  const DenseQp* problem = nullptr;  // QP of the current solve
 
   Eigen::LLT<Eigen::MatrixXd> llt;
   Eigen::MatrixXd Q;  // nv x nv orthogonal, J = L^-T Q
@@ -250,7 +256,7 @@ void DenseQpSolver::Workspace::ComputeStep(int id, int sign, double* zn, double*
         .triangularView<Eigen::Lower>()
         .solveInPlace(lt.tail(nv - id));
   } else {
-    lt = static_cast<double>(sign) * qp_->A.row(id - nv).transpose();
+    lt = static_cast<double>(sign) * problem->A.row(id - nv).transpose();
     l.triangularView<Eigen::Lower>().solveInPlace(lt);
   }
   d.noalias() = Q.transpose() * lt;
@@ -348,7 +354,6 @@ void DenseQpSolver::Workspace::DropActive(int k) {
 
 AddResult DenseQpSolver::Workspace::Add(int id, int sign, bool equality, bool warm_only) {
   double u_p = 0.0;
-  const double tol = ViolationTol(Rhs(id, sign));
   while (true) {
     if (iterations >= settings.max_iterations) return AddResult::kMaxIterations;
     const double s = Slack(id, sign);
@@ -371,7 +376,9 @@ AddResult DenseQpSolver::Workspace::Add(int id, int sign, bool equality, bool wa
           rho += term;
           scale += std::abs(term);
         }
-        if (!(rho < -settings.tolerance * scale) || -s <= tol) {
+        // For an equality both sides count: it is consistent only if rho ~ 0.
+        const double limit = settings.tolerance * scale;
+        if (equality ? std::abs(rho) <= limit : rho >= -limit) {
           if (equality) {
             state[id] = kRedundant;
           } else {
@@ -385,6 +392,7 @@ AddResult DenseQpSolver::Workspace::Add(int id, int sign, bool equality, bool wa
       if (warm_only) return AddResult::kSkipped;
       // Pure dual step, then drop the blocking constraint.
       u.head(q) -= t1 * r.head(q);
+      ClampMultipliers();
       u_p += t1;
       DropActive(k);
       continue;
@@ -394,9 +402,7 @@ AddResult DenseQpSolver::Workspace::Add(int id, int sign, bool equality, bool wa
     const double t = std::min(t1, t2);
     x += t * z;
     u.head(q) -= t * r.head(q);
-    for (int j = 0; j < q; ++j) {
-      if (!active_eq[j] && u[j] < 0.0) u[j] = 0.0;
-    }
+    ClampMultipliers();
     u_p += t;
     if (t2 <= t1) {
       AppendActive(id, sign, u_p);
@@ -428,7 +434,7 @@ bool DenseQpSolver::Workspace::MostViolated(int* id, int* sign) {
     const double above = value - hi;
     if (above > ViolationTol(hi)) push(c, -1, above);
   };
-  const DenseQp& qp = *qp_;
+  const DenseQp& qp = *problem;
   for (int j = 0; j < nv; ++j) consider(j, x[j], qp.lb[j], qp.ub[j]);
   if (nc > 0) {
     ax.noalias() = qp.A * x;
@@ -466,7 +472,7 @@ void DenseQpSolver::Workspace::Refine(bool clamp) {
   for (int k = 0; k < q; ++k) v[k] = Rhs(active_id[k], active_sign[k]);
   R.topLeftCorner(q, q).transpose().triangularView<Eigen::Lower>().solveInPlace(v.head(q));
   const auto& l = llt.matrixLLT();
-  lt = qp_->g;
+  lt = problem->g;
   l.triangularView<Eigen::Lower>().solveInPlace(lt);
   w.noalias() = Q.transpose() * lt;
   const int m = nv - q;
@@ -475,10 +481,7 @@ void DenseQpSolver::Workspace::Refine(bool clamp) {
   l.transpose().triangularView<Eigen::Upper>().solveInPlace(x);
   u.head(q) = v.head(q) + w.head(q);
   R.topLeftCorner(q, q).triangularView<Eigen::Upper>().solveInPlace(u.head(q));
-  if (!clamp) return;
-  for (int j = 0; j < q; ++j) {
-    if (!active_eq[j] && u[j] < 0.0) u[j] = 0.0;
-  }
+  if (clamp) ClampMultipliers();
 }
 
 AddResult DenseQpSolver::Workspace::WarmStartBatch() {
@@ -515,9 +518,7 @@ AddResult DenseQpSolver::Workspace::WarmStartBatch() {
     if (iterations >= settings.max_iterations) return AddResult::kMaxIterations;
     DropActive(worst);
   }
-  for (int j = 0; j < q; ++j) {
-    if (!active_eq[j] && u[j] < 0.0) u[j] = 0.0;
-  }
+  ClampMultipliers();
   return AddResult::kAdded;
 }
 
@@ -550,13 +551,13 @@ void DenseQpSolver::Workspace::WriteSolution(QpSolution* sol) {
     }
   }
   sol->x = x;
-  w.noalias() = qp_->H * x;
-  sol->objective = 0.5 * x.dot(w) + qp_->g.dot(x);
+  w.noalias() = problem->H * x;
+  sol->objective = 0.5 * x.dot(w) + problem->g.dot(x);
   sol->num_active = q;
 }
 
 QpStatus DenseQpSolver::Workspace::Run(const DenseQp& qp, QpSolution* sol) {
-  qp_ = &qp;
+  problem = &qp;
   q = 0;
   q_ready = false;
   has_deferred = false;
@@ -591,8 +592,8 @@ QpStatus DenseQpSolver::Workspace::Run(const DenseQp& qp, QpSolution* sol) {
     if (a == AddResult::kInfeasible || a == AddResult::kMaxIterations) return fail(a);
   }
 
-  // Phase 2: warm start from the previous active inequalities, in order, as long as each
-  // addition is a full step that keeps the multipliers dual feasible.
+  // Phase 2: warm start from the previous active inequalities (a dual feasible start:
+  // x minimises the QP on the working set and u >= 0), see QpSettings::warm_start_batch.
   bool refined = false;  // (x, u) freshly recomputed from the factorisation
   if (settings.warm_start && prev_count > 0) {
     const AddResult a = settings.warm_start_batch ? WarmStartBatch() : WarmStartSequential();
