@@ -1,0 +1,238 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "fnmpc/sysid/attitude_fit.hpp"
+
+#include <ceres/ceres.h>
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "fnmpc/sysid/trajectory_fit.hpp"
+
+namespace fnmpc::sysid {
+
+template <class T>
+void SimulateFirstOrder(const std::vector<double>& t, const std::vector<double>& ref, const T& tau,
+                        const T& gain, const T& delay, const T& y0, std::vector<T>* y) {
+  using std::exp;
+  const std::size_t n = t.size();
+  y->resize(n);
+  if (n == 0) return;
+  T state = y0;
+  T s = T(t[0]);
+  std::size_t j = 0;  // ref[j] acts for s in [t_j + d, t_{j+1} + d); ref[0] also before
+  auto propagate = [&](double r, const T& dt) {
+    const T target = gain * r;
+    state = target + (state - target) * exp(-dt / tau);
+  };
+  (*y)[0] = state;
+  for (std::size_t i = 1; i < n; ++i) {
+    const T end = T(t[i]);
+    while (j + 1 < n && T(t[j + 1]) + delay < end) {
+      const T b = T(t[j + 1]) + delay;
+      if (b > s) {
+        propagate(ref[j], b - s);
+        s = b;
+      }
+      ++j;
+    }
+    propagate(ref[j], end - s);
+    s = end;
+    (*y)[i] = state;
+  }
+}
+
+template void SimulateFirstOrder<double>(const std::vector<double>&, const std::vector<double>&,
+                                         const double&, const double&, const double&, const double&,
+                                         std::vector<double>*);
+
+template <class T>
+void SimulateAttitudeLoop(const std::vector<double>& t, const std::vector<double>& ref, double gain,
+                          const T& kp, const T& kd, double y0, const AttitudeLoopSettings& st,
+                          std::vector<T>* y) {
+  const std::size_t n = t.size();
+  y->resize(n);
+  if (n == 0) return;
+  const double h = st.physics_dt;
+  const int every = std::max(1, static_cast<int>(std::lround(1.0 / (st.autopilot_rate_hz * h))));
+  const double lag = 1.0 - std::exp(-h / st.motor_time_constant);
+  const double amax = st.max_angular_acceleration;
+  T theta = T(y0), omega = T(0.0), accel = T(0.0), accel_cmd = T(0.0);
+  T theta_prev = theta;
+  double s = t[0];
+  std::size_t j = 0;  // reference index: last with t_j <= s
+  (*y)[0] = theta;
+  std::size_t i = 1;
+  for (long step = 0; i < n; ++step) {
+    while (j + 1 < n && t[j + 1] <= s + 1e-12) ++j;
+    if (step % every == 0) {
+      accel_cmd = kp * (gain * ref[j] - theta) - kd * omega;
+      if (accel_cmd > T(amax)) accel_cmd = T(amax);
+      if (accel_cmd < T(-amax)) accel_cmd = T(-amax);
+    }
+    accel += (accel_cmd - accel) * lag;
+    omega += h * accel;
+    theta_prev = theta;
+    theta += h * omega;
+    const double s_next = s + h;
+    // Linear interpolation for every sample time in (s, s_next].
+    while (i < n && t[i] <= s_next + 1e-12) {
+      const double w = std::clamp((t[i] - s) / h, 0.0, 1.0);
+      (*y)[i] = theta_prev + (theta - theta_prev) * w;
+      ++i;
+    }
+    s = s_next;
+  }
+}
+
+template void SimulateAttitudeLoop<double>(const std::vector<double>&, const std::vector<double>&,
+                                           double, const double&, const double&, double,
+                                           const AttitudeLoopSettings&, std::vector<double>*);
+
+namespace {
+
+void CheckLog(const char* who, const std::vector<double>& t, const std::vector<double>& ref,
+              const std::vector<double>& angle) {
+  if (ref.size() != t.size() || angle.size() != t.size()) {
+    throw std::invalid_argument(std::string("[") + who + "] t, ref and angle differ in length");
+  }
+  if (t.size() < 20) {
+    throw std::invalid_argument(std::string("[") + who + "] need at least 20 samples, got " +
+                                std::to_string(t.size()));
+  }
+  double lo = ref[0], hi = ref[0];
+  for (double r : ref) {
+    lo = std::min(lo, r);
+    hi = std::max(hi, r);
+  }
+  if (!(hi - lo > 1e-6)) {
+    throw std::invalid_argument(std::string("[") + who +
+                                "] the reference never changes: nothing to identify");
+  }
+}
+
+struct FirstOrderSim {
+  const std::vector<double>* t;
+  const std::vector<double>* ref;
+  bool fit_delay;
+  template <class T>
+  void operator()(const T* p, std::vector<T>* y) const {
+    SimulateFirstOrder<T>(*t, *ref, p[0], p[1], fit_delay ? p[2] : T(0.0), p[3], y);
+  }
+};
+
+struct LoopSim {
+  const std::vector<double>* t;
+  const std::vector<double>* ref;
+  double gain;
+  double y0;
+  AttitudeLoopSettings settings;
+  template <class T>
+  void operator()(const T* p, std::vector<T>* y) const {
+    SimulateAttitudeLoop<T>(*t, *ref, gain, p[0], p[1], y0, settings, y);
+  }
+};
+
+}  // namespace
+
+FirstOrderFit FitFirstOrder(const std::vector<double>& t, const std::vector<double>& ref,
+                            const std::vector<double>& angle, const FirstOrderFitSettings& st) {
+  CheckLog("FitFirstOrder", t, ref, angle);
+  // Start: grid over tau (d = 0) with (k, y0) by linear least squares: y = k u + y0 v, where
+  // u is the unit-gain response from 0 and v = exp(-(t - t0)/tau) the free response.
+  double best_tau = 0.1, best_k = 1.0, best_y0 = angle[0], best_err = kInf;
+  std::vector<double> u, v(t.size());
+  for (double tau = 0.01; tau < 1.0; tau *= 1.05) {
+    SimulateFirstOrder<double>(t, ref, tau, 1.0, 0.0, 0.0, &u);
+    for (std::size_t i = 0; i < t.size(); ++i) v[i] = std::exp(-(t[i] - t[0]) / tau);
+    double uu = 0, uv = 0, vv = 0, uy = 0, vy = 0;
+    for (std::size_t i = 0; i < t.size(); ++i) {
+      uu += u[i] * u[i];
+      uv += u[i] * v[i];
+      vv += v[i] * v[i];
+      uy += u[i] * angle[i];
+      vy += v[i] * angle[i];
+    }
+    const double det = uu * vv - uv * uv;
+    if (!(std::abs(det) > 1e-300)) continue;
+    const double k = (vv * uy - uv * vy) / det, y0 = (uu * vy - uv * uy) / det;
+    double err = 0.0;
+    for (std::size_t i = 0; i < t.size(); ++i) {
+      const double r = k * u[i] + y0 * v[i] - angle[i];
+      err += r * r;
+    }
+    if (err < best_err) {
+      best_err = err;
+      best_tau = tau;
+      best_k = k;
+      best_y0 = y0;
+    }
+  }
+  FirstOrderFit fit;
+  fit.noise_sigma = NoiseSigma(angle);
+  const FirstOrderSim sim{&t, &ref, st.fit_delay};
+  const double d0 = st.fit_delay ? std::min(0.01, 0.5 * st.max_delay) : 0.0;
+  const std::array<double, 4> p0{best_tau, best_k, d0, best_y0};
+  const std::array<double, 4> lo{1e-3, -10.0, 0.0, -kInf};
+  const std::array<double, 4> hi{10.0, 10.0, st.fit_delay ? st.max_delay : 1.0, kInf};
+  // Plain least squares first; then a Huber loss at 3x that fit's RMS, which only
+  // down-weights real outliers (a scale from the sensor noise alone would also discount
+  // the step transitions, where the first-order model cannot follow the loop exactly).
+  const auto r0 = FitTrajectory<4>(sim, angle, p0, lo, hi, 0.0);
+  const auto r =
+      FitTrajectory<4>(sim, angle, r0.p, lo, hi, 3.0 * std::max(r0.rms, fit.noise_sigma));
+  if (!r.converged) throw std::invalid_argument("[FitFirstOrder] the fit did not converge");
+  fit.time_constant = r.p[0];
+  fit.gain = r.p[1];
+  fit.delay = st.fit_delay ? r.p[2] : 0.0;
+  fit.initial = r.p[3];
+  fit.equivalent_time_constant = fit.time_constant + fit.delay;
+  fit.rms = r.rms;
+  return fit;
+}
+
+PdFit FitPdGains(const std::vector<double>& t, const std::vector<double>& ref,
+                 const std::vector<double>& angle, const FirstOrderFit& fo,
+                 const AttitudeLoopSettings& st) {
+  CheckLog("FitPdGains", t, ref, angle);
+  if (!(st.physics_dt > 0.0) || !(st.autopilot_rate_hz > 0.0) || !(st.motor_time_constant > 0.0)) {
+    throw std::invalid_argument(
+        "[FitPdGains] physics_dt, autopilot_rate_hz and "
+        "motor_time_constant must be > 0");
+  }
+  const LoopSim sim{&t, &ref, fo.gain, fo.initial, st};
+  const double tau = fo.equivalent_time_constant;
+  // Start on the valley K_d = tau K_p: the best K_p of a log grid.
+  double best_kp = 1.0 / (tau * tau), best_err = kInf;
+  std::vector<double> y;
+  for (double kp = 1.0 / (tau * tau); kp < 1e5; kp *= 1.15) {
+    const double p[2] = {kp, tau * kp};
+    sim(p, &y);
+    double err = 0.0;
+    for (std::size_t i = 0; i < t.size(); ++i) err += (y[i] - angle[i]) * (y[i] - angle[i]);
+    if (std::isfinite(err) && err < best_err) {
+      best_err = err;
+      best_kp = kp;
+    }
+  }
+  const std::array<double, 2> p0{best_kp, tau * best_kp};
+  const std::array<double, 2> lo{1e-3, 1e-4};
+  const std::array<double, 2> hi{1e6, 1e5};
+  const auto r0 = FitTrajectory<2>(sim, angle, p0, lo, hi, 0.0);
+  const auto r =
+      FitTrajectory<2>(sim, angle, r0.p, lo, hi, 3.0 * std::max(r0.rms, NoiseSigma(angle)));
+  if (!r.converged) throw std::invalid_argument("[FitPdGains] the fit did not converge");
+  PdFit fit;
+  fit.kp = r.p[0];
+  fit.kd = r.p[1];
+  fit.rms = r.rms;
+  std::vector<double> yf;
+  sim(r.p.data(), &y);
+  SimulateFirstOrder<double>(t, ref, fo.time_constant, fo.gain, fo.delay, fo.initial, &yf);
+  double ss = 0.0;
+  for (std::size_t i = 0; i < t.size(); ++i) ss += (y[i] - yf[i]) * (y[i] - yf[i]);
+  fit.rms_to_first_order = std::sqrt(ss / static_cast<double>(t.size()));
+  return fit;
+}
+
+}  // namespace fnmpc::sysid

@@ -1,0 +1,79 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include <vector>
+
+#include "fnmpc/core/types.hpp"
+
+namespace fnmpc::sysid {
+
+/// First-order closed-loop attitude model of one axis with a transport delay d:
+/// y'(t) = (k r(t - d) - y(t)) / tau, y(t0) = y0, the reference r held between samples.
+struct FirstOrderFit {
+  double time_constant = 0.0;  ///< tau of the model with delay [s]
+  double delay = 0.0;          ///< d [s]
+  double gain = 0.0;           ///< k [-]
+  double initial = 0.0;        ///< y0 [rad]
+  /// tau + d [s]: the delay-free first-order model with the same mean residence time (area
+  /// above the normalised step response). This is what the NMPC prediction model uses.
+  double equivalent_time_constant = 0.0;
+  double rms = 0.0;          ///< RMS residual [rad]
+  double noise_sigma = 0.0;  ///< robust noise estimate of the measured angle [rad]
+};
+
+/// Settings of FitFirstOrder.
+struct FirstOrderFitSettings {
+  bool fit_delay = true;   ///< false: d = 0
+  double max_delay = 0.1;  ///< upper bound of d [s]
+};
+
+/// Exact response of the first-order model with delay at the sample times `t` (increasing),
+/// for the reference samples `ref` (held constant until the next sample) [rad].
+template <class T>
+void SimulateFirstOrder(const std::vector<double>& t, const std::vector<double>& ref, const T& tau,
+                        const T& gain, const T& delay, const T& y0, std::vector<T>* y);
+
+/// Fits (tau, k, d, y0) with Ceres (Levenberg-Marquardt, Huber loss of 3 noise sigma on
+/// every sample). Starts from a grid over tau with k, y0 by linear least squares. Throws
+/// std::invalid_argument on mismatched sizes, fewer than 20 samples or a constant reference.
+FirstOrderFit FitFirstOrder(const std::vector<double>& t, const std::vector<double>& ref,
+                            const std::vector<double>& angle,
+                            const FirstOrderFitSettings& settings = {});
+
+/// Light-weight model of the simulator's attitude loop for one axis (docs/simulator.md):
+/// every 1/autopilot_rate_hz the PD law commands the angular acceleration
+/// a_c = clamp(K_p (k r - y) - K_d w, +-max_angular_acceleration), the motors deliver it with
+/// a first-order lag (motor_time_constant), and y'' = a is integrated with semi-implicit Euler
+/// at physics_dt (MuJoCo's Euler). Inertia cancels because the gains are normalised by it.
+struct AttitudeLoopSettings {
+  double physics_dt = 0.001;               ///< [s]
+  double autopilot_rate_hz = 250.0;        ///< [Hz]
+  double motor_time_constant = 0.02;       ///< [s]
+  double max_angular_acceleration = kInf;  ///< actuator limit [rad/s^2] (yaw: T_q/T_k m g / I_z)
+};
+
+/// Response of the light-weight loop at the sample times `t` from rest at y0 [rad].
+template <class T>
+void SimulateAttitudeLoop(const std::vector<double>& t, const std::vector<double>& ref, double gain,
+                          const T& kp, const T& kd, double y0, const AttitudeLoopSettings& settings,
+                          std::vector<T>* y);
+
+/// Fitted lumped PD gains of one axis.
+struct PdFit {
+  double kp = 0.0;   ///< [1/s^2]
+  double kd = 0.0;   ///< [1/s]
+  double rms = 0.0;  ///< RMS residual against the measured angle [rad]
+  /// RMS difference between the light-weight loop and the identified first-order
+  /// response (with its delay) [rad].
+  double rms_to_first_order = 0.0;
+};
+
+/// Fits K_p, K_d by simulating the light-weight loop (gain k and start from `first_order`)
+/// against the measured angle, Huber loss of 3 noise sigma. The start is the best point of
+/// a log grid over K_p with K_d = tau_eq K_p (same mean residence time as the identified
+/// first-order model), so the fit starts on the valley of responses that reproduce it.
+PdFit FitPdGains(const std::vector<double>& t, const std::vector<double>& ref,
+                 const std::vector<double>& angle, const FirstOrderFit& first_order,
+                 const AttitudeLoopSettings& settings);
+
+}  // namespace fnmpc::sysid
