@@ -81,7 +81,10 @@ CsvTable ParseCsv(const std::string& text, const std::string& name,
                                  [&](const Cell& c) { return Trim(c.text) == required[r]; });
     if (it == header.end()) {
       std::string have;
-      for (const auto& c : header) have += (have.empty() ? "" : ",") + Trim(c.text);
+      for (const auto& c : header) {
+        if (!have.empty()) have.push_back(',');
+        have.append(Trim(c.text));
+      }
       throw ConfigError(Where(name, header_line, 1) + ": column '" + required[r] +
                         "': missing required column (header has: " + have + ")");
     }

@@ -1,0 +1,69 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "fnmpc/sysid/attitude_fit.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+#include <stdexcept>
+
+namespace fnmpc::sysid {
+namespace {
+
+// Step/doublet reference sampled at 250 Hz: 0, +a, 0, -a, 0 (1.2 s each).
+void StepLog(double amplitude, std::vector<double>* t, std::vector<double>* ref) {
+  const std::array<double, 5> levels{0.0, 1.0, 0.0, -1.0, 0.0};
+  for (int k = 0; k < 1500; ++k) {
+    t->push_back(0.004 * k);
+    ref->push_back(amplitude * levels[static_cast<std::size_t>(k / 300)]);
+  }
+}
+
+TEST(AttitudeFitTest, FirstOrderWithDelayIsRecovered) {
+  // Given a first-order response with a 15 ms delay, noise and a few outliers,
+  std::vector<double> t, ref, y;
+  StepLog(0.1, &t, &ref);
+  SimulateFirstOrder<double>(t, ref, 0.12, 1.02, 0.015, 0.003, &y);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n(0.0, 0.001);
+  for (std::size_t i = 0; i < y.size(); ++i) y[i] += n(rng) + (i % 211 == 7 ? 0.03 : 0.0);
+  // When it is fitted,
+  const FirstOrderFit fit = FitFirstOrder(t, ref, y);
+  // Then tau, k and the delay are recovered.
+  EXPECT_NEAR(fit.time_constant, 0.12, 0.003);
+  EXPECT_NEAR(fit.gain, 1.02, 0.005);
+  EXPECT_NEAR(fit.delay, 0.015, 0.002);
+  EXPECT_NEAR(fit.equivalent_time_constant, 0.135, 0.004);
+  EXPECT_LT(fit.rms, 0.003);
+}
+
+TEST(AttitudeFitTest, PdGainsOfTheLightModelAreRecovered) {
+  // Given the light-weight loop with known gains, logged with noise,
+  std::vector<double> t, ref, y;
+  StepLog(0.1, &t, &ref);
+  const AttitudeLoopSettings st;
+  SimulateAttitudeLoop<double>(t, ref, 0.99, 420.0, 48.0, 0.0, st, &y);
+  std::mt19937 rng(6);
+  std::normal_distribution<double> n(0.0, 0.001);
+  for (double& v : y) v += n(rng);
+  // When first-order model and PD gains are fitted,
+  const FirstOrderFit fo = FitFirstOrder(t, ref, y);
+  const PdFit pd = FitPdGains(t, ref, y, fo, st);
+  // Then the gains are within 3 % and the loop's mean residence time K_d/K_p is close to
+  // the first-order equivalent time constant.
+  EXPECT_NEAR(pd.kp, 420.0, 0.03 * 420.0);
+  EXPECT_NEAR(pd.kd, 48.0, 0.03 * 48.0);
+  EXPECT_NEAR(fo.gain, 0.99, 0.01);
+  EXPECT_NEAR(fo.equivalent_time_constant, 48.0 / 420.0, 0.08 * 48.0 / 420.0);
+  EXPECT_LT(pd.rms, 0.0015);
+}
+
+TEST(AttitudeFitTest, RejectsConstantReference) {
+  // Given a log whose reference never changes, When fitted, Then the fit refuses.
+  std::vector<double> t(100), ref(100, 0.1), y(100, 0.1);
+  for (int k = 0; k < 100; ++k) t[k] = 0.01 * k;
+  EXPECT_THROW(FitFirstOrder(t, ref, y), std::invalid_argument);
+  EXPECT_THROW(FitFirstOrder(t, ref, std::vector<double>(99)), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace fnmpc::sysid

@@ -1,0 +1,167 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: BSD-3-Clause
+"""Plots and summary of `fnmpc sysid` / `fnmpc calibrate` from the CSV dumps they write.
+
+Usage: MPLBACKEND=Agg /usr/bin/python3 tools/sysid_report.py REPORT_DIR
+REPORT_DIR holds summary.json and the CSVs; this writes one PNG per fit and summary.md.
+"""
+import csv
+import json
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+
+def read_csv(path):
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    return {k: [float(r[k]) for r in rows] for k in rows[0]} if rows else {}
+
+
+def save(fig, path):
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def sysid_report(d, s):
+    b = read_csv(os.path.join(d, "bench.csv"))
+    fig, ax = plt.subplots(1, 3, figsize=(14, 4))
+    rpm2 = [r * r for r in b["rpm"]]
+    ax[0].plot(rpm2, b["thrust"], ".", label="bench")
+    ax[0].plot(rpm2, b["thrust_fit"], "-", label="T_k rpm^2")
+    ax[0].set_xlabel("rpm^2")
+    ax[0].set_ylabel("thrust [N]")
+    ax[0].legend()
+    ax[1].plot(rpm2, b["torque"], ".", label="bench")
+    ax[1].plot(rpm2, b["torque_fit"], "-", label="T_q rpm^2")
+    ax[1].set_xlabel("rpm^2")
+    ax[1].set_ylabel("torque [N m]")
+    ax[1].legend()
+    sc = ax[2].scatter(b["thrust"], [t - f for t, f in zip(b["throttle"], b["throttle_fit"])],
+                       c=b["voltage"], s=8)
+    fig.colorbar(sc, ax=ax[2], label="voltage [V]")
+    ax[2].set_xlabel("thrust [N]")
+    ax[2].set_ylabel("throttle residual [-]")
+    ax[2].set_title("cubic thrust-throttle-voltage fit")
+    save(fig, os.path.join(d, "bench.png"))
+
+    for axis in "xyz":
+        p = read_csv(os.path.join(d, f"pendulum_{axis}.csv"))
+        fig, ax = plt.subplots(figsize=(10, 3.5))
+        ax.plot(p["t"], p["angle"], ".", ms=2, label="measured")
+        ax.plot(p["t"], p["fit"], "-", lw=1, label="damped sinusoid fit")
+        pe = s["pendulum"][axis]
+        ax.set_title(f"pendulum {axis}: T = {pe['natural_period']:.4f} s, "
+                     f"I = {pe['inertia']:.5f} kg m^2")
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel("angle [rad]")
+        ax.legend()
+        save(fig, os.path.join(d, f"pendulum_{axis}.png"))
+
+    for axis in ("roll", "pitch", "yaw"):
+        a = read_csv(os.path.join(d, f"attitude_{axis}.csv"))
+        at = s["attitude"][axis]
+        fig, ax = plt.subplots(figsize=(10, 3.5))
+        ax.plot(a["t"], a["ref"], "k--", lw=1, label="reference")
+        ax.plot(a["t"], a["angle"], ".", ms=2, label="feedback (measured)")
+        ax.plot(a["t"], a["first_order"], "-", lw=1.2,
+                label=f"first order: tau {at['time_constant']:.4f} + delay {at['delay']:.4f} s, "
+                      f"k {at['gain']:.3f}")
+        ax.plot(a["t"], a["pd_loop"], ":", lw=1.2,
+                label=f"sim PD loop: K_p {at['kp']:.1f}, K_d {at['kd']:.2f}")
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel(f"{axis} [rad]")
+        ax.legend(fontsize=8)
+        save(fig, os.path.join(d, f"attitude_{axis}.png"))
+
+    lines = [f"# System identification: {s.get('name', '')}", "",
+             f"Campaign: `{s['campaign']}`", "",
+             "| quantity | value | fit quality |", "|---|---|---|",
+             f"| mass | {s['mass']:.4f} kg | from the campaign file |",
+             f"| thrust constant T_k | {s['thrust_constant']:.4e} N/rpm^2 | rms {s['thrust_rms']:.3g} N |",
+             f"| torque constant T_q | {s['torque_constant']:.4e} N m/rpm^2 | rms {s['torque_rms']:.3g} N m |",
+             f"| throttle polynomial | cubic in (f, V) | rms {s['throttle_rms']:.4f}, max {s['throttle_max_abs']:.4f} ({s['bench_samples']} samples) |"]
+    for axis in "xyz":
+        pe = s["pendulum"][axis]
+        lines.append(f"| inertia {axis} | {pe['inertia']:.5f} kg m^2 | T = {pe['natural_period']:.4f} s, "
+                     f"decay {pe['decay_rate']:.3f} 1/s, rms {pe['rms']:.2g} rad |")
+    for axis in ("roll", "pitch", "yaw"):
+        at = s["attitude"][axis]
+        lines.append(f"| {axis} time constant (tau + delay) | {at['equivalent_time_constant']:.4f} s | "
+                     f"tau {at['time_constant']:.4f} s, delay {at['delay']:.4f} s, rms {at['rms']:.2g} rad |")
+        lines.append(f"| {axis} gain k | {at['gain']:.4f} | |")
+        lines.append(f"| {axis} K_p, K_d | {at['kp']:.1f} 1/s^2, {at['kd']:.2f} 1/s | "
+                     f"rms {at['pd_rms']:.2g} rad (to first order: {at['pd_rms_to_first_order']:.2g} rad) |")
+    lines += ["", "Plots: bench.png, pendulum_{x,y,z}.png, attitude_{roll,pitch,yaw}.png", ""]
+    with open(os.path.join(d, "summary.md"), "w") as f:
+        f.write("\n".join(lines))
+
+
+def calibrate_report(d, s):
+    w = read_csv(os.path.join(d, "windows.csv"))
+    fig, ax = plt.subplots(3, 1, figsize=(11, 8), sharex=True)
+    windows = sorted(set(int(k) for k in w["window"]))
+    for i, name in enumerate("xyz"):
+        ax[i].plot(w["t"], w[name], "k.", ms=2, label="logged")
+        for k in windows:
+            idx = [j for j, v in enumerate(w["window"]) if int(v) == k]
+            t = [w["t"][j] for j in idx]
+            ax[i].plot(t, [w[name + "_before"][j] for j in idx], "r-", lw=0.8,
+                       label="predicted, before" if k == windows[0] else None)
+            ax[i].plot(t, [w[name + "_after"][j] for j in idx], "b-", lw=0.8,
+                       label="predicted, calibrated" if k == windows[0] else None)
+        ax[i].set_ylabel(f"{name} [m]")
+    ax[0].legend(fontsize=8)
+    ax[0].set_title(f"{s['window']} s open-loop windows: mean position error "
+                    f"{s['position_error_before']:.4f} m before, {s['position_error_after']:.4f} m after")
+    ax[2].set_xlabel("t [s]")
+    save(fig, os.path.join(d, "trajectories.png"))
+
+    c = read_csv(os.path.join(d, "commands.csv"))
+    fig, ax = plt.subplots(3, 1, figsize=(11, 8), sharex=True)
+    ax[0].plot(c["t"], c["thrust_cmd"], "b-", lw=1, label="commanded")
+    ax[0].plot(c["t"], c["thrust_after"], "r--", lw=1, label="produced (calibrated scale)")
+    ax[0].set_ylabel("thrust [N]")
+    for i, name in ((1, "roll"), (2, "pitch")):
+        ax[i].plot(c["t"], c[name + "_cmd"], "b-", lw=1, label="commanded")
+        ax[i].plot(c["t"], c[name + "_after"], "r--", lw=1, label="commanded + bias")
+        ax[i].plot(c["t"], c[name], "k.", ms=1.5, label="measured")
+        ax[i].set_ylabel(f"{name} [rad]")
+    for a in ax:
+        a.legend(fontsize=8)
+    ax[2].set_xlabel("t [s]")
+    save(fig, os.path.join(d, "commands.png"))
+
+    deg = 180.0 / 3.141592653589793
+    lines = ["# Simulator calibration", "", f"Vehicle `{s['vehicle']}`, flight `{s['flight']}`", "",
+             "| quantity | value |", "|---|---|",
+             f"| roll bias | {s['bias_roll']:.5f} rad ({s['bias_roll'] * deg:.3f} deg) |",
+             f"| pitch bias | {s['bias_pitch']:.5f} rad ({s['bias_pitch'] * deg:.3f} deg) |",
+             f"| thrust scale | {s['thrust_scale']:.4f} |",
+             f"| mean position error, before | {s['position_error_before']:.4f} m |",
+             f"| mean position error, after | {s['position_error_after']:.4f} m |",
+             f"| windows | {s['windows']} x {s['window']} s, every {s['window_stride']} s |",
+             "", "Plots: trajectories.png, commands.png", ""]
+    with open(os.path.join(d, "summary.md"), "w") as f:
+        f.write("\n".join(lines))
+
+
+def main():
+    if len(sys.argv) != 2:
+        sys.exit(__doc__)
+    d = sys.argv[1]
+    with open(os.path.join(d, "summary.json")) as f:
+        s = json.load(f)
+    if s["kind"] == "sysid":
+        sysid_report(d, s)
+    else:
+        calibrate_report(d, s)
+
+
+if __name__ == "__main__":
+    main()
