@@ -48,6 +48,45 @@ struct FollowerModel {
     return f;
   }
 
+  using Jacobian = OwnDynamicsJacobian;
+  /// Flow and structured Jacobian (the neighbour blocks of f_x are constant).
+  static void FlowAndJacobian(const Vec<kNx>& x, const Vec<kNu>& u, double psi_ref,
+                              const AttitudeModelParams& m, Vec<kNx>* f, Jacobian* jac) {
+    *jac = OwnDynamicsJacobian::At(x[kPhi], x[kTheta], x[kPsi], u, psi_ref, m);
+    f->template segment<3>(kVel) = jac->vdot;
+    f->template segment<3>(kPhi) = jac->angle_dot;
+    for (int j = 0; j < Neighbours; ++j) {
+      const int o = Neighbour(j);
+      f->template segment<3>(o) =
+          x.template segment<3>(o + NeighbourIndex::kVel) - x.template segment<3>(kVel);
+      f->template segment<3>(o + NeighbourIndex::kVel).setZero();
+      (*f)[o + NeighbourIndex::kYaw] = x[o + NeighbourIndex::kYawRate];
+      (*f)[o + NeighbourIndex::kYawRate] = 0.0;
+    }
+  }
+  /// out = f_x * S exploiting the sparsity of f_x.
+  template <class In, class Out>
+  static void MultiplyFx(const Jacobian& jac, const In& s, Out* out) {
+    out->template middleRows<3>(kVel).noalias() = jac.dv_dangles * s.template middleRows<3>(kPhi);
+    out->template middleRows<3>(kPhi) =
+        jac.dangle_dangle.asDiagonal() * s.template middleRows<3>(kPhi);
+    for (int j = 0; j < Neighbours; ++j) {
+      const int o = Neighbour(j);
+      out->template middleRows<3>(o) =
+          s.template middleRows<3>(o + NeighbourIndex::kVel) - s.template middleRows<3>(kVel);
+      out->template middleRows<3>(o + NeighbourIndex::kVel).setZero();
+      out->row(o + NeighbourIndex::kYaw) = s.row(o + NeighbourIndex::kYawRate);
+      out->row(o + NeighbourIndex::kYawRate).setZero();
+    }
+  }
+  /// out += f_u.
+  template <class Out>
+  static void AddFu(const Jacobian& jac, Out* out) {
+    out->template block<3, 1>(kVel, 0) += jac.dv_dthrust;
+    (*out)(kPhi, 1) += jac.dangle_dref[0];
+    (*out)(kTheta, 2) += jac.dangle_dref[1];
+  }
+
   static void FlowJacobian(const Vec<kNx>& x, const Vec<kNu>& u, double psi_ref,
                            const AttitudeModelParams& m, Vec<kNx>* f, Mat<kNx, kNx>* fx,
                            Mat<kNx, kNu>* fu) {

@@ -36,4 +36,12 @@ void QuadrotorModel::FlowJacobian(const Vec<kNx>& x, const Vec<kNu>& u, double p
   (*fu)(kTheta, kThetaRef) = j.dangle_dref[1];
 }
 
+void QuadrotorModel::FlowAndJacobian(const Vec<kNx>& x, const Vec<kNu>& u, double psi_ref,
+                                     const AttitudeModelParams& m, Vec<kNx>* f, Jacobian* jac) {
+  *jac = OwnDynamicsJacobian::At(x[kPhi], x[kTheta], x[kPsi], u, psi_ref, m);
+  f->segment<3>(kPos) = x.segment<3>(kVel);
+  f->segment<3>(kVel) = jac->vdot;
+  f->segment<3>(kPhi) = jac->angle_dot;
+}
+
 }  // namespace fnmpc::model

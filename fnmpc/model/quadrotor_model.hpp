@@ -21,6 +21,19 @@ struct AttitudeModelParams {
   }
 };
 
+/// Jacobian blocks shared by every model with the quadrotor's own velocity/attitude:
+/// rows of v' and angle' with respect to (angles, inputs).
+struct OwnDynamicsJacobian {
+  Mat3 dv_dangles;     ///< d v' / d(phi, theta, psi)
+  Vec3 dv_dthrust;     ///< d v' / d T
+  Vec3 dangle_dangle;  ///< diagonal: -1/tau_i
+  Vec3 dangle_dref;    ///< diagonal: k_i/tau_i (phi_ref, theta_ref; yaw's is online data)
+  Vec3 vdot;           ///< v'
+  Vec3 angle_dot;      ///< angle'
+  static OwnDynamicsJacobian At(double phi, double theta, double psi, const Vec3& u,
+                                double psi_ref, const AttitudeModelParams& m);
+};
+
 /// Quadrotor with first-order closed-loop attitude (problem L of the benchmark spec).
 ///
 /// State x (kNx = 9): [p (3) position, v (3) velocity, phi, theta, psi] in the inertial
@@ -52,19 +65,34 @@ struct QuadrotorModel {
   static void FlowJacobian(const Vec<kNx>& x, const Vec<kNu>& u, double psi_ref,
                            const AttitudeModelParams& m, Vec<kNx>* f, Mat<kNx, kNx>* fx,
                            Mat<kNx, kNu>* fu);
+
+  /// Structured Jacobian: only its nonzero blocks (see OwnDynamicsJacobian).
+  using Jacobian = OwnDynamicsJacobian;
+  /// Flow and structured Jacobian at (x, u): what RK4's sensitivity propagation needs.
+  static void FlowAndJacobian(const Vec<kNx>& x, const Vec<kNu>& u, double psi_ref,
+                              const AttitudeModelParams& m, Vec<kNx>* f, Jacobian* jac);
+  /// out = f_x * S for any S with kNx rows, exploiting the sparsity of f_x
+  /// (O(kNx * cols) instead of O(kNx^2 * cols)).
+  template <class In, class Out>
+  static void MultiplyFx(const Jacobian& jac, const In& s, Out* out);
+  /// out += f_u, with out a kNx x kNu block.
+  template <class Out>
+  static void AddFu(const Jacobian& jac, Out* out);
 };
 
-/// Jacobian blocks shared by every model with the quadrotor's own velocity/attitude:
-/// rows of v' and angle' with respect to (angles, inputs).
-struct OwnDynamicsJacobian {
-  Mat3 dv_dangles;     ///< d v' / d(phi, theta, psi)
-  Vec3 dv_dthrust;     ///< d v' / d T
-  Vec3 dangle_dangle;  ///< diagonal: -1/tau_i
-  Vec3 dangle_dref;    ///< diagonal: k_i/tau_i (phi_ref, theta_ref; yaw's is online data)
-  Vec3 vdot;           ///< v'
-  Vec3 angle_dot;      ///< angle'
-  static OwnDynamicsJacobian At(double phi, double theta, double psi, const Vec3& u,
-                                double psi_ref, const AttitudeModelParams& m);
-};
+
+template <class In, class Out>
+void QuadrotorModel::MultiplyFx(const Jacobian& jac, const In& s, Out* out) {
+  out->template middleRows<3>(kPos) = s.template middleRows<3>(kVel);
+  out->template middleRows<3>(kVel).noalias() = jac.dv_dangles * s.template middleRows<3>(kPhi);
+  out->template middleRows<3>(kPhi) = jac.dangle_dangle.asDiagonal() * s.template middleRows<3>(kPhi);
+}
+
+template <class Out>
+void QuadrotorModel::AddFu(const Jacobian& jac, Out* out) {
+  out->template block<3, 1>(kVel, kThrust) += jac.dv_dthrust;
+  (*out)(kPhi, kPhiRef) += jac.dangle_dref[0];
+  (*out)(kTheta, kThetaRef) += jac.dangle_dref[1];
+}
 
 }  // namespace fnmpc::model

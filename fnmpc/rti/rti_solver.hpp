@@ -97,6 +97,7 @@ class RtiSolver {
     du_.assign(n_, U::Zero());
     lambda_.assign(n_ + 1, X::Zero());
     mu_.assign(n_ + 1, X::Zero());
+    k_gain_.assign(n_, Mat<kNu, kNx>::Zero());
     g_.setZero(n_ * kNx, n_ * kNu);
     qp_ = qp::DenseQp({nz_, nc_});
     qp_solution_ = qp::QpSolution({nz_, nc_});
@@ -386,6 +387,9 @@ class RtiSolver {
   [[nodiscard]] const StateBoundLayout& layout() const { return layout_; }
 
  private:
+  // Which Hessian condensing is cheaper: the cost-to-go form wins for small nx.
+  static constexpr bool kCostToGoCondensing = kNx <= 16;
+
   struct Row {
     int stage;  // node k = 1..N
     int index;  // state component
@@ -402,24 +406,49 @@ class RtiSolver {
             a_[k] * g_.template block<kNx, kNu>((k - 1) * kNx, j * kNu);
       }
     }
-    // Hessian columns by backward sweeps.
-    Mat<kNx, kNu> p, pk;
-    for (int j = 0; j < n_; ++j) {
-      p.noalias() = q_mat_[n_] * g_.template block<kNx, kNu>((n_ - 1) * kNx, j * kNu);
-      for (int k = n_ - 1; k > j; --k) {
-        const auto gkj = g_.template block<kNx, kNu>((k - 1) * kNx, j * kNu);
-        Mat<kNu, kNu> hkj;
-        hkj.noalias() = s_mat_[k] * gkj;
-        hkj.noalias() += b_[k].transpose() * p;
-        qp_.H.template block<kNu, kNu>(k * kNu, j * kNu) = hkj;
-        qp_.H.template block<kNu, kNu>(j * kNu, k * kNu) = hkj.transpose();
-        pk.noalias() = q_mat_[k] * gkj;
-        pk.noalias() += a_[k].transpose() * p;
-        p = pk;
+    if constexpr (kCostToGoCondensing) {
+      // Small nx: with the cost-to-go Hessian M_k = Q_k + A_k' M_{k+1} A_k (O(N nx^3)),
+      // H_ij = (S_i + B_i' M_{i+1} A_i) G_ij for i > j (O(N^2 nx nu^2)).
+      MX m = q_mat_[n_];
+      for (int k = n_ - 1; k >= 0; --k) {
+        const Mat<kNu, kNx> bm = b_[k].transpose() * m;
+        Mat<kNu, kNu> hkk = r_mat_[k];
+        hkk.noalias() += bm * b_[k];
+        qp_.H.template block<kNu, kNu>(k * kNu, k * kNu) = 0.5 * (hkk + hkk.transpose());
+        k_gain_[k] = s_mat_[k];
+        k_gain_[k].noalias() += bm * a_[k];
+        const MX ma = m * a_[k];
+        m = q_mat_[k];
+        m.noalias() += a_[k].transpose() * ma;
       }
-      Mat<kNu, kNu> hjj = r_mat_[j];
-      hjj.noalias() += b_[j].transpose() * p;
-      qp_.H.template block<kNu, kNu>(j * kNu, j * kNu) = 0.5 * (hjj + hjj.transpose());
+      for (int j = 0; j < n_; ++j) {
+        for (int i = j + 1; i < n_; ++i) {
+          Mat<kNu, kNu> hij;
+          hij.noalias() = k_gain_[i] * g_.template block<kNx, kNu>((i - 1) * kNx, j * kNu);
+          qp_.H.template block<kNu, kNu>(i * kNu, j * kNu) = hij;
+          qp_.H.template block<kNu, kNu>(j * kNu, i * kNu) = hij.transpose();
+        }
+      }
+    } else {
+      // Large nx: Hessian columns by backward sweeps, O(N^2 nx^2 nu).
+      Mat<kNx, kNu> p, pk;
+      for (int j = 0; j < n_; ++j) {
+        p.noalias() = q_mat_[n_] * g_.template block<kNx, kNu>((n_ - 1) * kNx, j * kNu);
+        for (int k = n_ - 1; k > j; --k) {
+          const auto gkj = g_.template block<kNx, kNu>((k - 1) * kNx, j * kNu);
+          Mat<kNu, kNu> hkj;
+          hkj.noalias() = s_mat_[k] * gkj;
+          hkj.noalias() += b_[k].transpose() * p;
+          qp_.H.template block<kNu, kNu>(k * kNu, j * kNu) = hkj;
+          qp_.H.template block<kNu, kNu>(j * kNu, k * kNu) = hkj.transpose();
+          pk.noalias() = q_mat_[k] * gkj;
+          pk.noalias() += a_[k].transpose() * p;
+          p = pk;
+        }
+        Mat<kNu, kNu> hjj = r_mat_[j];
+        hjj.noalias() += b_[j].transpose() * p;
+        qp_.H.template block<kNu, kNu>(j * kNu, j * kNu) = 0.5 * (hjj + hjj.transpose());
+      }
     }
     for (int s = 0; s < nsl_; ++s) {
       qp_.H(n_ * kNu + s, n_ * kNu + s) = settings_.soft_quadratic_weight;
@@ -458,6 +487,7 @@ class RtiSolver {
   std::vector<U> r_vec_;
   std::vector<X> e_, dx_, lambda_, mu_;
   std::vector<U> du_;
+  std::vector<Mat<kNu, kNx>> k_gain_;
   MatX g_;
   qp::DenseQp qp_;
   qp::QpSolution qp_solution_;
