@@ -1,0 +1,58 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "fnmpc/formation/takeoff_pid.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace fnmpc::formation {
+
+void TakeoffPidConfig::Validate() const {
+  auto check = [](double v, const char* name) {
+    if (!std::isfinite(v) || v < 0.0) {
+      throw std::invalid_argument(std::string("[TakeoffPidConfig] ") + name +
+                                  " must be finite and >= 0, got " + std::to_string(v));
+    }
+  };
+  check(kp_z, "kp_z");
+  check(kd_z, "kd_z");
+  check(ki_z, "ki_z");
+  check(max_integral, "max_integral");
+  check(kv_xy, "kv_xy");
+  check(max_tilt, "max_tilt");
+  check(max_thrust, "max_thrust");
+}
+
+TakeoffPid::TakeoffPid(const TakeoffPidConfig& config, double mass) : config_(config), mass_(mass) {
+  config_.Validate();
+  if (!(mass > 0.0)) throw std::invalid_argument("[TakeoffPid] mass must be > 0");
+}
+
+void TakeoffPid::Reset(double thrust) {
+  integral_ = std::isfinite(thrust) ? std::clamp(thrust / mass_ - kGravity, -config_.max_integral,
+                                                 config_.max_integral)
+                                    : 0.0;
+}
+
+PidCommand TakeoffPid::Update(double dt, double z_ref, double vz_ref, double z,
+                              const Vec3& velocity, const Vec3& euler) {
+  PidCommand c;
+  const double ez = z_ref - z;
+  if (std::isfinite(ez) && dt > 0.0) {
+    integral_ =
+        std::clamp(integral_ + config_.ki_z * ez * dt, -config_.max_integral, config_.max_integral);
+  }
+  const double az = config_.kp_z * ez + config_.kd_z * (vz_ref - velocity.z()) + integral_;
+  const double tilt = std::max(0.5, std::cos(euler.x()) * std::cos(euler.y()));
+  c.thrust = std::clamp(mass_ * (kGravity + az) / tilt, 0.0, config_.max_thrust);
+  if (!std::isfinite(az) || !std::isfinite(tilt)) c.thrust = kNaN;
+  const double ax = -config_.kv_xy * velocity.x(), ay = -config_.kv_xy * velocity.y();
+  const double cy = std::cos(euler.z()), sy = std::sin(euler.z());
+  c.pitch = std::clamp((ax * cy + ay * sy) / kGravity, -config_.max_tilt, config_.max_tilt);
+  c.roll = std::clamp((ax * sy - ay * cy) / kGravity, -config_.max_tilt, config_.max_tilt);
+  if (!std::isfinite(ax + ay + euler.z())) c.roll = c.pitch = kNaN;
+  return c;
+}
+
+}  // namespace fnmpc::formation

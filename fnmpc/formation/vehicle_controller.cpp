@@ -1,0 +1,595 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "fnmpc/formation/vehicle_controller.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "fnmpc/core/stopwatch.hpp"
+#include "fnmpc/formation/throttle_map.hpp"
+
+namespace fnmpc::formation {
+
+std::string_view ToString(FlightPhase p) {
+  switch (p) {
+    case FlightPhase::kIdle:
+      return "idle";
+    case FlightPhase::kTakeoff:
+      return "takeoff";
+    case FlightPhase::kNmpc:
+      return "nmpc";
+    case FlightPhase::kLanding:
+      return "landing";
+    case FlightPhase::kLanded:
+      return "landed";
+  }
+  return "?";
+}
+
+void ControllerConfig::Validate() const {
+  auto fail = [](const std::string& what) {
+    throw std::invalid_argument("[ControllerConfig] " + what);
+  };
+  params.Validate();
+  rti.Validate();
+  if (vehicle < 0) fail("vehicle index must be >= 0, got " + std::to_string(vehicle));
+  if (!(thrust_min >= 0.0 && thrust_max > thrust_min)) fail("thrust bounds need 0 <= min < max");
+  if (!(max_attitude_ref > 0.0 && max_attitude_ref < 1.2))
+    fail("max_attitude_ref must be in (0, 1.2) rad");
+  if (!(max_speed > 0.0)) fail("max_speed must be > 0");
+  if (!leader) {
+    if (neighbours.empty() || neighbours.size() > 2) {
+      fail("a follower needs 1 or 2 neighbours, got " + std::to_string(neighbours.size()));
+    }
+    for (const auto& n : neighbours) {
+      if (n.vehicle < 0 || n.vehicle == vehicle)
+        fail("bad neighbour index " + std::to_string(n.vehicle));
+      if (!n.desired.allFinite()) fail("desired relative position must be finite");
+    }
+    if (!((relative_position_bound.array() > 0.0).all()))
+      fail("relative_position_bound must be > 0");
+  } else if (trajectory.empty()) {
+    fail("the leader needs a trajectory");
+  }
+  if (!(takeoff_height > ground_height)) fail("takeoff_height must be above ground_height");
+  if (!(climb_speed > 0.0) || !(descent_speed > 0.0)) fail("climb and descent speeds must be > 0");
+  if (!(blend_time >= 0.0) || !(hover_before_switch >= 0.0))
+    fail("blend_time, hover_before_switch >= 0");
+  if (!(landing_time > takeoff_time)) fail("landing_time must be after takeoff_time");
+  if (!(touchdown_margin > 0.0)) fail("touchdown_margin must be > 0");
+  if (!(voltage_filter_time >= 0.0)) fail("voltage_filter_time must be >= 0");
+  pid.Validate();
+}
+
+// ---------------------------------------------------------------------------------------
+// NMPC cores. The solvers (leader, reduced follower with 1 and 2 neighbours) are
+// instantiated implicitly in this translation unit.
+
+/// What a follower estimates of one neighbour (NeighbourStateIndex layout, split).
+struct NeighbourState {
+  Vec3 rel_pos = Vec3::Zero();  // p_j - p_self [m]
+  Vec3 vel = Vec3::Zero();      // [m/s]
+  double yaw = 0.0;             // [rad]
+  double yaw_rate = 0.0;        // [rad/s]
+};
+
+/// One NMPC step's inputs: own estimate and neighbour estimates.
+struct NmpcInput {
+  double t = 0.0;
+  Vec3 position = Vec3::Zero();  // leader only, {n}
+  Vec<6> own = Vec<6>::Zero();   // v (3), roll, pitch, yaw
+  std::array<NeighbourState, 2> neighbours{};
+};
+
+struct NmpcStep {
+  Vec3 u = Vec3::Constant(kNaN);
+  rti::RtiStats stats;
+  double cpu_time = kNaN;
+  double kkt = kNaN;
+  double cost = kNaN;
+  Vec3 reference = Vec3::Constant(kNaN);
+};
+
+class NmpcCore {
+ public:
+  virtual ~NmpcCore() = default;
+  virtual void Start(const NmpcInput& in, const Vec3& u_guess) = 0;
+  virtual NmpcStep Step(const NmpcInput& in) = 0;
+};
+
+namespace {
+
+template <class Solver, class Problem>
+double Objective(const Solver& s, const Problem& problem, const typename Solver::Y& w,
+                 const typename Solver::YN& wn, const std::vector<typename Solver::Y>& yref,
+                 const typename Solver::YN& yref_n, const std::vector<typename Solver::P>& params) {
+  double cost = 0.0;
+  typename Solver::Y y;
+  for (int k = 0; k < s.horizon(); ++k) {
+    problem.StageResidual(s.states()[k], s.inputs()[k], params[k], &y, nullptr, nullptr);
+    cost += 0.5 * (y - yref[k]).cwiseAbs2().dot(w);
+  }
+  typename Solver::YN yn;
+  problem.TerminalResidual(s.states()[s.horizon()], params[s.horizon()], &yn, nullptr);
+  cost += 0.5 * (yn - yref_n).cwiseAbs2().dot(wn);
+  return cost;
+}
+
+template <class Solver>
+void InputBounds(const ControllerConfig& c, Solver* s) {
+  const Vec3 lo(c.thrust_min, -c.max_attitude_ref, -c.max_attitude_ref);
+  const Vec3 hi(c.thrust_max, c.max_attitude_ref, c.max_attitude_ref);
+  for (int k = 0; k < s->horizon(); ++k) s->SetInputBounds(k, lo, hi);
+}
+
+class LeaderCore final : public NmpcCore {
+ public:
+  using Solver = rti::RtiSolver<ocp::LeaderProblem>;
+  LeaderCore(const ControllerConfig& c, const Vec3& anchor, double yaw_ref)
+      : c_(c),
+        anchor_(anchor),
+        solver_(ocp::LeaderProblem{model::AttitudeModelParams::From(c.params)}, c.rti,
+                rti::StateBoundLayout{{3, 4, 5}, {false, false, false}}) {
+    const NmpcWeights& wt = c.weights;
+    w_ << wt.position, wt.velocity, wt.attitude, wt.attitude, wt.thrust, wt.attitude_ref,
+        wt.attitude_ref;
+    wn_ = wt.terminal_factor * w_.head<8>();
+    solver_.SetWeights(w_, wn_);
+    InputBounds(c, &solver_);
+    Vec<9> lb = Vec<9>::Constant(-kInf), ub = Vec<9>::Constant(kInf);
+    lb.segment<3>(3).setConstant(-c.max_speed);
+    ub.segment<3>(3).setConstant(c.max_speed);
+    for (int k = 1; k <= solver_.horizon(); ++k) solver_.SetStateBounds(k, lb, ub);
+    yref_.assign(solver_.horizon(), Solver::Y::Zero());
+    params_.assign(solver_.horizon() + 1, Solver::P::Constant(yaw_ref));
+    for (int k = 0; k <= solver_.horizon(); ++k) solver_.SetParameters(k, params_[k]);
+    yref_n_.setZero();
+  }
+
+  void Start(const NmpcInput& in, const Vec3& u_guess) override {
+    solver_.InitializeGuess(State(in), u_guess);
+    first_ = true;
+  }
+
+  NmpcStep Step(const NmpcInput& in) override {
+    NmpcStep out;
+    if (!first_) solver_.Shift();
+    first_ = false;
+    References(in.t);
+    const Vec<9> x0 = State(in);
+    const double cpu0 = ThreadCpuSeconds();
+    solver_.Step(x0, &out.u);
+    out.cpu_time = ThreadCpuSeconds() - cpu0;
+    out.stats = solver_.stats();
+    out.kkt = solver_.ComputeKkt(x0);
+    out.cost = Objective(solver_, solver_.problem(), w_, wn_, yref_, yref_n_, params_);
+    out.reference = yref_[0].head<3>();
+    return out;
+  }
+
+ private:
+  static Vec<9> State(const NmpcInput& in) {
+    Vec<9> x;
+    x << in.position, in.own;
+    return x;
+  }
+  void References(double t) {
+    const double ts = c_.rti.sample_time;
+    Vec3 p, v;
+    for (int k = 0; k <= solver_.horizon(); ++k) {
+      c_.trajectory.Sample(t + k * ts - c_.trajectory_start, &p, &v);
+      if (k < solver_.horizon()) {
+        yref_[k].setZero();
+        yref_[k].head<3>() = anchor_ + p;
+        yref_[k].segment<3>(3) = v;
+        solver_.SetReference(k, yref_[k]);
+      } else {
+        yref_n_.setZero();
+        yref_n_.head<3>() = anchor_ + p;
+        yref_n_.segment<3>(3) = v;
+        solver_.SetTerminalReference(yref_n_);
+      }
+    }
+  }
+
+  ControllerConfig c_;
+  Vec3 anchor_;
+  Solver solver_;
+  Solver::Y w_;
+  Solver::YN wn_;
+  std::vector<Solver::Y> yref_;
+  Solver::YN yref_n_;
+  std::vector<Solver::P> params_;
+  bool first_ = true;
+};
+
+template <int Nn>
+class FollowerCore final : public NmpcCore {
+ public:
+  using Problem = ocp::ReducedFollowerProblem<Nn>;
+  using Solver = rti::RtiSolver<Problem>;
+  FollowerCore(const ControllerConfig& c, double yaw_ref)
+      : c_(c),
+        yaw_ref_(yaw_ref),
+        solver_(
+            Problem{model::AttitudeModelParams::From(c.params), c.frame}, c.rti,
+            rti::StateBoundLayout{{0, 1, 2, 3, 4, 5}, {true, true, true, false, false, false}}) {
+    const NmpcWeights& wt = c.weights;
+    w_.setZero();
+    for (int j = 0; j < Nn; ++j) {
+      w_.template segment<3>(3 * j) = wt.position;
+      w_.template segment<3>(3 * Nn + 3 * j) = wt.velocity;
+    }
+    w_.template tail<5>() << wt.attitude, wt.attitude, wt.thrust, wt.attitude_ref, wt.attitude_ref;
+    wn_ = wt.terminal_factor * w_.template head<6 * Nn + 2>();
+    solver_.SetWeights(w_, wn_);
+    InputBounds(c, &solver_);
+    typename Solver::Y y = Solver::Y::Zero();
+    for (int j = 0; j < Nn; ++j) y.template segment<3>(3 * j) = c.neighbours[j].desired;
+    yref_.assign(solver_.horizon(), y);
+    for (int k = 0; k < solver_.horizon(); ++k) solver_.SetReference(k, y);
+    yref_n_ = y.template head<6 * Nn + 2>();
+    solver_.SetTerminalReference(yref_n_);
+    params_.assign(solver_.horizon() + 1, Solver::P::Zero());
+  }
+
+  void Start(const NmpcInput& in, const Vec3& u_guess) override {
+    solver_.InitializeGuess(Stage(in), u_guess);
+    first_ = true;
+  }
+
+  NmpcStep Step(const NmpcInput& in) override {
+    NmpcStep out;
+    if (!first_) {
+      solver_.Shift();
+      Vec<9> shift = Vec<9>::Zero();
+      shift.head<3>() = -solver_.states()[0].template head<3>();
+      solver_.OffsetGuess(shift);  // the displacement restarts at zero every step
+    }
+    first_ = false;
+    const Vec<9> x0 = Stage(in);
+    const double cpu0 = ThreadCpuSeconds();
+    solver_.Step(x0, &out.u);
+    out.cpu_time = ThreadCpuSeconds() - cpu0;
+    out.stats = solver_.stats();
+    out.kkt = solver_.ComputeKkt(x0);
+    out.cost = Objective(solver_, solver_.problem(), w_, wn_, yref_, yref_n_, params_);
+    return out;
+  }
+
+ private:
+  // Stage parameters from the neighbours' constant-velocity predictions, relative-position
+  // bounds mapped onto the displacement s: -b <= c_j - s <= b (cf. SetReducedFollowerStage).
+  Vec<9> Stage(const NmpcInput& in) {
+    const double ts = c_.rti.sample_time;
+    Vec<9> lb = Vec<9>::Constant(-kInf), ub = Vec<9>::Constant(kInf);
+    lb.segment<3>(3).setConstant(-c_.max_speed);
+    ub.segment<3>(3).setConstant(c_.max_speed);
+    const Vec3& b = c_.relative_position_bound;
+    for (int k = 0; k <= solver_.horizon(); ++k) {
+      typename Solver::P& p = params_[k];
+      p[0] = yaw_ref_;
+      Vec3 lo = Vec3::Constant(-kInf), hi = Vec3::Constant(kInf);
+      for (int j = 0; j < Nn; ++j) {
+        const auto& nb = in.neighbours[j];
+        const Vec3 cj = nb.rel_pos + (k * ts) * nb.vel;
+        p.template segment<3>(Problem::ParamRelPos(j)) = cj;
+        p.template segment<3>(Problem::ParamVel(j)) = nb.vel;
+        lo = lo.cwiseMax(cj - b);
+        hi = hi.cwiseMin(cj + b);
+      }
+      solver_.SetParameters(k, p);
+      if (k >= 1) {
+        lb.head<3>() = lo;
+        ub.head<3>() = hi;
+        solver_.SetStateBounds(k, lb, ub);
+      }
+    }
+    Vec<9> x0;
+    x0 << Vec3::Zero(), in.own;
+    return x0;
+  }
+
+  ControllerConfig c_;
+  double yaw_ref_;
+  Solver solver_;
+  typename Solver::Y w_;
+  typename Solver::YN wn_;
+  std::vector<typename Solver::Y> yref_;
+  typename Solver::YN yref_n_;
+  std::vector<typename Solver::P> params_;
+  bool first_ = true;
+};
+
+estimation::VehicleEkfConfig OwnEkfConfig(const ControllerConfig& c) {
+  estimation::VehicleEkfConfig e;
+  e.sensors = c.sensors;
+  e.vehicle = c.vehicle;
+  e.ground_height = c.leader ? c.ground_height : 0.0;
+  return e;
+}
+
+bool Rejected(estimation::EkfStatus s) {
+  using estimation::EkfStatus;
+  return s == EkfStatus::kRejectedNonFinite || s == EkfStatus::kRejectedGated ||
+         s == EkfStatus::kRejectedTooOld || s == EkfStatus::kRejectedInvalid ||
+         s == EkfStatus::kNumericalError;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------
+
+VehicleController::VehicleController(const ControllerConfig& config)
+    : config_((config.Validate(), config)),
+      ekf_(OwnEkfConfig(config), config.params),
+      pid_(config.pid, config.params.mass) {
+  for (const NeighbourTarget& n : config_.neighbours) {
+    estimation::NeighbourEkfConfig nc;
+    nc.sensors = config_.sensors;
+    nc.observer = config_.vehicle;
+    nc.target = n.vehicle;
+    neighbour_ekfs_.emplace_back(nc);
+  }
+  estimates_.neighbours.assign(config_.neighbours.size(),
+                               estimation::NeighbourStateVec::Constant(kNaN));
+}
+
+VehicleController::~VehicleController() = default;
+VehicleController::VehicleController(VehicleController&&) noexcept = default;
+VehicleController& VehicleController::operator=(VehicleController&&) noexcept = default;
+
+void VehicleController::Process(const Measurement& m) {
+  if (m.vehicle != config_.vehicle) return;
+  switch (m.kind) {
+    case SensorKind::kMocapPose:
+      // The leader fuses mocap; a follower has no absolute position: only the height is
+      // kept, for the take-off and landing PID.
+      if (config_.leader) {
+        ekf_.Process(m);
+      } else if (std::isfinite(m.position.z())) {
+        mocap_z_ = m.position.z();
+      }
+      break;
+    case SensorKind::kCompass:
+      if (!config_.leader && !ekf_.initialized() && std::isfinite(m.yaw)) {
+        ekf_.Initialize(m.stamp, Vec3::Zero(), Vec3(0.0, 0.0, m.yaw));  // origin of {m}
+      }
+      ekf_.Process(m);
+      break;
+    case SensorKind::kImu:
+    case SensorKind::kOpticalFlow:
+      ekf_.Process(m);
+      break;
+    case SensorKind::kBattery:
+      if (std::isfinite(m.voltage) && m.voltage > 0.0) {
+        if (!std::isfinite(voltage_)) {
+          voltage_ = m.voltage;
+        } else {
+          const double dt = std::max(0.0, m.stamp - voltage_stamp_);
+          const double a = config_.voltage_filter_time > 0.0
+                               ? 1.0 - std::exp(-dt / config_.voltage_filter_time)
+                               : 1.0;
+          voltage_ += a * (m.voltage - voltage_);
+        }
+        voltage_stamp_ = m.stamp;
+      }
+      break;
+    case SensorKind::kRelative: {
+      if (!ekf_.initialized()) break;
+      for (std::size_t j = 0; j < config_.neighbours.size(); ++j) {
+        if (config_.neighbours[j].vehicle != m.relative.target) continue;
+        const estimation::VehicleEstimate e = ekf_.Estimate(m.stamp);
+        const Mat3 cov = e.covariance.block<3, 3>(6, 6);
+        neighbour_ekfs_[j].Process(m, e.euler, e.velocity, &cov);
+      }
+      break;
+    }
+  }
+}
+
+std::int64_t VehicleController::estimator_rejections() const {
+  std::int64_t n = 0;
+  for (int s = 0; s < estimation::kNumEkfStatus; ++s) {
+    if (!Rejected(static_cast<estimation::EkfStatus>(s))) continue;
+    n += ekf_.counters().Total(static_cast<estimation::EkfStatus>(s));
+    for (const auto& f : neighbour_ekfs_)
+      n += f.counters().Total(static_cast<estimation::EkfStatus>(s));
+  }
+  return n;
+}
+
+double VehicleController::Height() const {
+  const auto& own = estimates_.own;
+  if (config_.leader) return own.valid ? own.position.z() : kNaN;
+  if (std::isfinite(mocap_z_)) return mocap_z_;
+  return own.valid ? config_.ground_height + own.position.z() : kNaN;
+}
+
+void VehicleController::Blend(double t, double* thrust, double* roll, double* pitch) const {
+  if (!blend_from_.allFinite() || !(config_.blend_time > 0.0)) return;
+  const double a = std::clamp((t - blend_start_) / config_.blend_time, 0.0, 1.0);
+  *thrust = (1.0 - a) * blend_from_[0] + a * *thrust;
+  *roll = (1.0 - a) * blend_from_[1] + a * *roll;
+  *pitch = (1.0 - a) * blend_from_[2] + a * *pitch;
+}
+
+ControlOutput VehicleController::Control(double t) {
+  estimates_.own = ekf_.initialized() ? ekf_.Estimate(t) : estimation::VehicleEstimate{};
+  const estimation::VehicleEstimate& own = estimates_.own;
+  for (std::size_t j = 0; j < neighbour_ekfs_.size(); ++j) {
+    auto& f = neighbour_ekfs_[j];
+    if (f.initialized() && own.valid && own.velocity.allFinite()) {
+      f.PredictTo(t, own.velocity);
+      estimates_.neighbours[j] = f.StateAt(t, own.velocity);
+    } else {
+      estimates_.neighbours[j].setConstant(kNaN);
+    }
+  }
+  const ControlOutput out = Step(t);
+  if (ekf_.initialized()) ekf_.SetCommand(t, out.thrust, out.roll, out.pitch, out.yaw);
+  return out;
+}
+
+ControlOutput VehicleController::ControlWithEstimates(
+    double t, const estimation::VehicleEstimate& own,
+    const std::vector<estimation::NeighbourStateVec>& neighbours) {
+  estimates_.own = own;
+  for (std::size_t j = 0; j < estimates_.neighbours.size(); ++j) {
+    estimates_.neighbours[j] =
+        j < neighbours.size() ? neighbours[j] : estimation::NeighbourStateVec::Constant(kNaN);
+  }
+  return Step(t);
+}
+
+ControlOutput VehicleController::Step(double t) {
+  const double dt =
+      std::isfinite(last_time_) ? std::max(0.0, t - last_time_) : config_.rti.sample_time;
+  last_time_ = t;
+  ControlOutput out;
+  out.time = t;
+  out.voltage = voltage_;
+  const estimation::VehicleEstimate& own = estimates_.own;
+  if (!std::isfinite(yaw_ref_) && own.valid && std::isfinite(own.euler.z()))
+    yaw_ref_ = own.euler.z();
+  out.yaw = std::isfinite(yaw_ref_) ? yaw_ref_ : 0.0;
+
+  double thrust = kNaN, roll = kNaN, pitch = kNaN;
+  const double z = Height();
+  const double ground = config_.ground_height;
+  const double h = config_.takeoff_height;
+
+  // ---- Phase logic.
+  if (phase_ == FlightPhase::kIdle && t >= config_.takeoff_time && own.valid && std::isfinite(z) &&
+      std::isfinite(yaw_ref_)) {
+    phase_ = FlightPhase::kTakeoff;
+    phase_start_ = t;
+    z_ref_ = z;
+    pid_.Reset(config_.params.mass * kGravity);
+  }
+  if (phase_ == FlightPhase::kNmpc && t >= config_.landing_time) {
+    phase_ = FlightPhase::kLanding;
+    phase_start_ = t;
+    z_ref_ = std::isfinite(z) ? z : h;
+    pid_.Reset(last_command_[0]);
+    blend_from_ = last_command_;
+    blend_start_ = t;
+  }
+
+  switch (phase_) {
+    case FlightPhase::kIdle:
+    case FlightPhase::kLanded:
+      thrust = roll = pitch = 0.0;
+      break;
+    case FlightPhase::kTakeoff: {
+      double vz_ref = 0.0;
+      if (z_ref_ < h) {
+        z_ref_ = std::min(h, z_ref_ + config_.climb_speed * dt);
+        vz_ref = z_ref_ < h ? config_.climb_speed : 0.0;
+      }
+      const PidCommand c = pid_.Update(dt, z_ref_, vz_ref, z, own.velocity, own.euler);
+      thrust = c.thrust;
+      roll = c.roll;
+      pitch = c.pitch;
+      if (z_ref_ >= h && std::abs(z - h) < 0.05) {
+        if (!std::isfinite(at_height_since_)) at_height_since_ = t;
+      } else {
+        at_height_since_ = kNaN;
+      }
+      const bool neighbours_ok =
+          std::all_of(estimates_.neighbours.begin(), estimates_.neighbours.end(),
+                      [](const estimation::NeighbourStateVec& x) { return x.allFinite(); });
+      if (std::isfinite(at_height_since_) && t - at_height_since_ >= config_.hover_before_switch &&
+          neighbours_ok && last_command_.allFinite()) {
+        // Smooth switch: the NMPC starts from the PID's last command (guess and blend).
+        phase_ = FlightPhase::kNmpc;
+        phase_start_ = t;
+        nmpc_start_ = t;
+        blend_from_ = last_command_;
+        blend_start_ = t;
+        if (config_.leader) {
+          anchor_ = Vec3(own.position.x(), own.position.y(), h);
+          nmpc_ = std::make_unique<LeaderCore>(config_, anchor_, yaw_ref_);
+        } else if (config_.neighbours.size() == 1) {
+          nmpc_ = std::make_unique<FollowerCore<1>>(config_, yaw_ref_);
+        } else {
+          nmpc_ = std::make_unique<FollowerCore<2>>(config_, yaw_ref_);
+        }
+      }
+      break;
+    }
+    case FlightPhase::kNmpc:
+      break;  // below
+    case FlightPhase::kLanding: {
+      z_ref_ = std::max(ground - 0.3, z_ref_ - config_.descent_speed * dt);
+      const PidCommand c =
+          pid_.Update(dt, z_ref_, -config_.descent_speed, z, own.velocity, own.euler);
+      thrust = c.thrust;
+      roll = c.roll;
+      pitch = c.pitch;
+      Blend(t, &thrust, &roll, &pitch);
+      if (std::isfinite(z) && z < ground + config_.touchdown_margin && z_ref_ < ground) {
+        phase_ = FlightPhase::kLanded;
+        phase_start_ = t;
+        thrust = roll = pitch = 0.0;
+      }
+      break;
+    }
+  }
+
+  if (phase_ == FlightPhase::kNmpc) {
+    NmpcInput in;
+    in.t = t;
+    in.position = own.position;
+    in.own << own.velocity, own.euler;
+    for (std::size_t j = 0; j < estimates_.neighbours.size() && j < 2; ++j) {
+      const auto& x = estimates_.neighbours[j];
+      in.neighbours[j] = {x.segment<3>(0), x.segment<3>(3), x[6], x[7]};
+    }
+    if (t == nmpc_start_) nmpc_->Start(in, last_command_);
+    const NmpcStep s = nmpc_->Step(in);
+    out.nmpc = true;
+    out.nmpc_thrust = s.u[0];
+    out.nmpc_roll = s.u[1];
+    out.nmpc_pitch = s.u[2];
+    out.cost = s.cost;
+    out.kkt = s.kkt;
+    out.solver_time = s.stats.time_total;
+    out.solver_cpu_time = s.cpu_time;
+    out.sqp_iterations = s.stats.sqp_iterations;
+    out.qp_iterations = s.stats.qp_iterations;
+    out.fallback = s.stats.fallback;
+    out.status = s.stats.status;
+    out.reference = s.reference;
+    if (out.fallback) ++fallbacks_;
+    thrust = s.u[0];
+    roll = s.u[1];
+    pitch = s.u[2];
+    Blend(t, &thrust, &roll, &pitch);
+  }
+
+  // ---- Guard: a non-finite estimate or solution never becomes a command.
+  if (!std::isfinite(thrust) || !std::isfinite(roll) || !std::isfinite(pitch)) {
+    out.guarded = true;
+    if (last_command_.allFinite()) {
+      thrust = last_command_[0];
+      roll = last_command_[1];
+      pitch = last_command_[2];
+    } else {
+      thrust = roll = pitch = 0.0;
+    }
+  } else {
+    last_command_ = Vec3(thrust, roll, pitch);
+  }
+  out.phase = phase_;
+  out.thrust = thrust;
+  out.roll = roll;
+  out.pitch = pitch;
+  if (config_.use_throttle && std::isfinite(voltage_)) {
+    out.throttle = ThrustToThrottle(config_.params.throttle, thrust, voltage_);
+  }
+  return out;
+}
+
+}  // namespace fnmpc::formation

@@ -1,0 +1,185 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string_view>
+#include <vector>
+
+#include "fnmpc/core/sensors.hpp"
+#include "fnmpc/core/types.hpp"
+#include "fnmpc/estimation/neighbour_ekf.hpp"
+#include "fnmpc/estimation/vehicle_ekf.hpp"
+#include "fnmpc/formation/takeoff_pid.hpp"
+#include "fnmpc/formation/trajectory.hpp"
+#include "fnmpc/model/vehicle_params.hpp"
+#include "fnmpc/ocp/problems.hpp"
+#include "fnmpc/rti/rti_solver.hpp"
+
+/// Per-vehicle cascaded formation controller of the reference work (Fig. 2): estimators
+/// (VehicleEkf, one NeighbourEkf per neighbour) -> NMPC (RTI, Algorithm 1) -> autopilot
+/// thrust/throttle and attitude references, with a PID take-off, a smooth switch to the
+/// NMPC and a PID landing. No files, no YAML, no simulator: the app wires it.
+namespace fnmpc::formation {
+
+/// Diagonal NMPC weights (the benchmark spec's values by default). Leader rows: position,
+/// velocity; follower rows: relative position and relative velocity per neighbour.
+struct NmpcWeights {
+  Vec3 position{20, 20, 30};     ///< leader p - p_ref, follower dx_j - d_j [1/m^2]
+  Vec3 velocity{2, 2, 2};        ///< leader v - v_ref, follower v_j - v [s^2/m^2]
+  double attitude = 1.0;         ///< roll and pitch [1/rad^2]
+  double thrust = 0.05;          ///< T - m g [1/N^2]
+  double attitude_ref = 5.0;     ///< roll and pitch references [1/rad^2]
+  double terminal_factor = 5.0;  ///< terminal weights = factor * stage weights
+};
+
+/// One neighbour of a follower: its vehicle index and the desired relative position
+/// d_j = p_j - p_self [m], in {m} (world axes) or {c} (rotated by the follower's yaw).
+struct NeighbourTarget {
+  int vehicle = -1;
+  Vec3 desired = Vec3::Zero();
+};
+
+/// Phases of a flight.
+enum class FlightPhase : int {
+  kIdle = 0,     ///< on the ground, motors off, estimators converging
+  kTakeoff = 1,  ///< PID climb to the take-off height
+  kNmpc = 2,     ///< NMPC in control (first blend_time blended from the PID's last command)
+  kLanding = 3,  ///< PID descent
+  kLanded = 4,   ///< touched down, motors off
+};
+std::string_view ToString(FlightPhase p);
+
+/// Everything one vehicle's controller is built from.
+struct ControllerConfig {
+  int vehicle = 0;              ///< index of the vehicle (its sensors' `vehicle` field)
+  bool leader = false;          ///< leader: tracks `trajectory`; follower: keeps the formation
+  model::VehicleParams params;  ///< vehicle model (mass, attitude model, throttle polynomial)
+  SensorsConfig sensors;        ///< sensor noise for the estimators
+  rti::RtiSettings rti;         ///< Ts, N, iterations, budget (defaults: the reference work)
+  NmpcWeights weights;
+  double thrust_min = 5.0, thrust_max = 25.0;  ///< NMPC thrust bounds [N]
+  double max_attitude_ref = 0.35;              ///< |roll_ref|, |pitch_ref| bound [rad]
+  double max_speed = 2.0;                      ///< |v_i| bound of the leader [m/s]
+  // Follower only.
+  std::vector<NeighbourTarget> neighbours;               ///< 1 or 2 neighbours
+  ocp::TargetFrame frame = ocp::TargetFrame::kInertial;  ///< frame of `desired`
+  Vec3 relative_position_bound{6.0, 6.0, 2.0};           ///< soft |dx_j,i| bounds [m]
+  // Leader only: reference offsets from the hover point, from trajectory_start [s].
+  WaypointTrajectory trajectory;
+  double trajectory_start = 10.0;
+  // Phases.
+  double takeoff_time = 1.0;         ///< motors start [s]
+  double takeoff_height = 1.0;       ///< height of the CoM above ground at the switch [m]
+  double climb_speed = 0.5;          ///< [m/s]
+  double hover_before_switch = 1.5;  ///< PID hover at the take-off height before the switch [s]
+  double blend_time = 0.5;           ///< linear blend PID -> NMPC (and NMPC -> PID) [s]
+  double landing_time = 1e9;         ///< start of the PID descent [s]
+  double descent_speed = 0.3;        ///< [m/s]
+  double ground_height = 0.1;        ///< CoM height when resting on the ground [m]
+  double touchdown_margin = 0.03;    ///< touchdown when within this of the ground height [m]
+  TakeoffPidConfig pid;
+  /// true: command the collective throttle from the thrust and the measured voltage.
+  bool use_throttle = true;
+  double voltage_filter_time = 0.3;  ///< first-order filter on the battery voltage [s]
+
+  /// Throws std::invalid_argument with the field name on an inconsistent value.
+  void Validate() const;
+};
+
+/// Command and diagnostics of one control step.
+struct ControlOutput {
+  double time = kNaN;
+  FlightPhase phase = FlightPhase::kIdle;
+  double thrust = 0.0;                        ///< commanded collective thrust [N]
+  double throttle = kNaN;                     ///< collective throttle [0, 1] (NaN: use thrust)
+  double roll = 0.0, pitch = 0.0, yaw = 0.0;  ///< attitude references [rad]
+  bool guarded = false;  ///< a non-finite command was replaced by the last valid one
+  // NMPC (valid when phase == kNmpc).
+  bool nmpc = false;
+  double nmpc_thrust = kNaN, nmpc_roll = kNaN, nmpc_pitch = kNaN;  ///< unblended NMPC output
+  double cost = kNaN;             ///< NMPC objective of the iterate after the step
+  double kkt = kNaN;              ///< KKT value after the step
+  double solver_time = kNaN;      ///< wall time of Step() [s]
+  double solver_cpu_time = kNaN;  ///< thread CPU time of Step() [s]
+  int sqp_iterations = 0, qp_iterations = 0;
+  bool fallback = false;
+  rti::RtiStatus status = rti::RtiStatus::kSuccess;
+  Vec3 reference = Vec3::Constant(kNaN);  ///< leader position reference [m]
+  double voltage = kNaN;                  ///< filtered measured battery voltage [V]
+};
+
+/// Estimates the controller used at one step (for logs).
+struct ControllerEstimates {
+  estimation::VehicleEstimate own;
+  std::vector<estimation::NeighbourStateVec> neighbours;  ///< NeighbourStateIndex layout
+};
+
+class NmpcCore;  // leader or reduced follower solver (vehicle_controller.cpp)
+
+/// The controller of one vehicle. Feed every measurement with Process() as it arrives and
+/// call Control(t) every Ts; Control never returns a non-finite command.
+class VehicleController {
+ public:
+  /// Throws std::invalid_argument on an invalid config.
+  explicit VehicleController(const ControllerConfig& config);
+  ~VehicleController();
+  VehicleController(VehicleController&&) noexcept;
+  VehicleController& operator=(VehicleController&&) noexcept;
+
+  /// Routes one measurement to the estimators (others' measurements are ignored).
+  void Process(const Measurement& m);
+  /// One control step at time t [s]: estimate -> NMPC or PID -> command.
+  ControlOutput Control(double t);
+  /// The same step with the estimates given instead of taken from the filters (own state
+  /// in {n} for the leader, {m} for a follower; neighbours in NeighbourStateIndex layout, one
+  /// per configured neighbour). For tests and external estimators; NaN entries are allowed
+  /// and never become a command.
+  ControlOutput ControlWithEstimates(double t, const estimation::VehicleEstimate& own,
+                                     const std::vector<estimation::NeighbourStateVec>& neighbours);
+
+  [[nodiscard]] FlightPhase phase() const { return phase_; }
+  [[nodiscard]] const ControllerConfig& config() const { return config_; }
+  /// Estimator rejections so far (gated, non-finite, too old, invalid, numerical) over
+  /// all of this vehicle's filters.
+  [[nodiscard]] std::int64_t estimator_rejections() const;
+  /// Number of NMPC fallbacks so far.
+  [[nodiscard]] long fallbacks() const { return fallbacks_; }
+  /// Estimates used by the last Control() call.
+  [[nodiscard]] const ControllerEstimates& estimates() const { return estimates_; }
+  /// Start of the NMPC phase [s] (NaN before).
+  [[nodiscard]] double nmpc_start() const { return nmpc_start_; }
+  /// Leader: anchor of the trajectory (hover point at the switch) [m].
+  [[nodiscard]] const Vec3& anchor() const { return anchor_; }
+
+ private:
+  ControlOutput Step(double t);
+  double Height() const;
+  void Blend(double t, double* thrust, double* roll, double* pitch) const;
+
+  ControllerConfig config_;
+  estimation::VehicleEkf ekf_;
+  std::vector<estimation::NeighbourEkf> neighbour_ekfs_;
+  std::unique_ptr<NmpcCore> nmpc_;
+  TakeoffPid pid_;
+  FlightPhase phase_ = FlightPhase::kIdle;
+  double phase_start_ = 0.0;
+  double nmpc_start_ = kNaN;
+  double last_time_ = kNaN;
+  double at_height_since_ = kNaN;
+  double z_ref_ = kNaN;
+  double land_z0_ = kNaN;
+  double mocap_z_ = kNaN;  // follower: raw mocap height (take-off/landing only)
+  double voltage_ = kNaN;  // filtered battery voltage
+  double voltage_stamp_ = kNaN;
+  double yaw_ref_ = kNaN;
+  Vec3 anchor_ = Vec3::Constant(kNaN);
+  Vec3 blend_from_ = Vec3::Constant(kNaN);  // (thrust, roll, pitch) at the last switch
+  double blend_start_ = kNaN;
+  Vec3 last_command_ = Vec3::Constant(kNaN);  // last valid (thrust, roll, pitch)
+  long fallbacks_ = 0;
+  ControllerEstimates estimates_;
+};
+
+}  // namespace fnmpc::formation
