@@ -243,6 +243,7 @@ struct Vehicle {
   Vec4 rpm_target = Vec4::Zero();
   Vec4 thrust_guess = Vec4::Constant(3.0);
   double fmax_guess = 10.0;
+  double collective_guess = 3.0;  // warm start of the collective-throttle inverse [N]
   double voltage = 0.0, soc = 1.0, current = 0.0;
   Vec3 v_prev = Vec3::Zero();
   Vec3 accel = Vec3::Zero();
@@ -313,7 +314,14 @@ struct World::Impl {
     const model::VehicleParams& p = v.params;
     const double volt = v.voltage;
     Vec4 f_ss;
-    if (!v.direct && !(v.command.thrust > 0.0)) {
+    // Collective thrust [N]: from the throttle command through the polynomial at the
+    // present voltage when it is set, else the thrust command.
+    double commanded = v.command.thrust;
+    if (!std::isnan(v.command.throttle)) {
+      const double thr = std::clamp(v.command.throttle, 0.0, 1.0);
+      commanded = 4.0 * ThrustForThrottle(p.throttle, thr, volt, &v.collective_guess);
+    }
+    if (!v.direct && !(commanded > 0.0)) {
       // Zero thrust command: the autopilot idles the motors (as a disarmed vehicle).
       v.throttle.setZero();
       f_ss.setZero();
@@ -331,7 +339,7 @@ struct World::Impl {
              WrapAngle(k.z() * c.yaw - eul.z()));
       const Vec3 torque =
           p.inertia.cwiseProduct(p.attitude_kp.cwiseProduct(e) - p.attitude_kd.cwiseProduct(w));
-      const double thrust = std::max(0.0, p.bias.thrust_scale * c.thrust);
+      const double thrust = std::max(0.0, p.bias.thrust_scale * commanded);
       const Vec4 f_base = v.mix_inv * Vec4(thrust, torque.x(), torque.y(), 0.0);
       const Vec4 f_yaw = v.mix_inv.col(3) * torque.z();
       double fmax = ThrustForThrottle(p.throttle, 1.0, volt, &v.fmax_guess);

@@ -21,10 +21,15 @@ using Vec4 = Eigen::Vector4d;
 
 /// Reference for the emulated autopilot: total thrust and absolute Euler angles.
 struct AttitudeCommand {
-  double thrust = 0.0;  ///< total commanded thrust [N]
+  double thrust = 0.0;  ///< total commanded thrust [N] (used when `throttle` is NaN)
   double roll = 0.0;    ///< [rad]
   double pitch = 0.0;   ///< [rad]
   double yaw = 0.0;     ///< absolute yaw angle [rad]
+  /// Optional collective throttle in [0, 1] (clamped), as sent to a real autopilot. When
+  /// set (not NaN) it replaces `thrust`: the autopilot's collective thrust is then
+  /// 4 * Thrust(throttle, V) at the present battery voltage V, so a controller that converts
+  /// its thrust with a stale or wrong voltage sees the resulting thrust error.
+  double throttle = kNaN;
 };
 
 /// One vehicle of the world.

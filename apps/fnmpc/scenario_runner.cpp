@@ -1,0 +1,484 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "apps/fnmpc/scenario_runner.hpp"
+
+#include <fmt/core.h>
+#include <fmt/ostream.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <stdexcept>
+
+#include "fnmpc/core/rotation.hpp"
+#include "fnmpc/formation/trajectory.hpp"
+#include "fnmpc/formation/vehicle_controller.hpp"
+#include "fnmpc/sim/world.hpp"
+
+namespace fnmpc::app {
+
+namespace {
+
+using formation::FlightPhase;
+using json = nlohmann::json;
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return kNaN;
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+double Max(const std::vector<double>& v) {
+  return v.empty() ? kNaN : *std::max_element(v.begin(), v.end());
+}
+double Mean(const std::vector<double>& v) {
+  if (v.empty()) return kNaN;
+  double s = 0.0;
+  for (double x : v) s += x;
+  return s / static_cast<double>(v.size());
+}
+/// NaN -> null in JSON.
+json Num(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
+
+formation::WaypointTrajectory LeaderTrajectory(const config::ScenarioConfig& s,
+                                               std::uint64_t seed) {
+  if (s.leader_mode == "manual") {
+    return formation::WaypointTrajectory::RandomWalk(s.walk_box, s.walk_moves, s.walk_min_leg,
+                                                     s.walk_max_leg, s.walk_min_hold,
+                                                     s.walk_max_hold, seed * 7919 + 17);
+  }
+  std::vector<Vec3> points{Vec3::Zero()};
+  for (const Vec3& p : s.waypoints) points.push_back(p);
+  return formation::WaypointTrajectory::Uniform(points, s.leg_duration, s.hold_duration);
+}
+
+formation::NmpcWeights Weights(const config::ScenarioWeights& w) {
+  formation::NmpcWeights o;
+  o.position = w.position;
+  o.velocity = w.velocity;
+  o.attitude = w.attitude;
+  o.thrust = w.thrust;
+  o.attitude_ref = w.attitude_ref;
+  o.terminal_factor = w.terminal_factor;
+  return o;
+}
+
+struct VehicleLog {
+  std::unique_ptr<std::ofstream> csv;
+  std::vector<double> errors;  // follower: mean over neighbours of |dx_j - d_j|
+  std::vector<double> steady_errors;
+  std::vector<std::vector<double>> nb_errors;  // per neighbour
+  std::vector<std::vector<double>> nb_steady;
+  std::vector<double> tracking;  // leader |p - p_ref|
+  std::vector<double> solver_time, solver_cpu, kkt, cost;
+  long over_budget = 0, steps = 0, fallbacks = 0, guarded = 0, failures = 0;
+  double first_step_time = kNaN;
+  double touchdown_vz = kNaN, touchdown_time = kNaN;
+  double max_thrust_jump_at_switch = kNaN;
+  bool motors_off = false;
+};
+
+}  // namespace
+
+config::ScenarioConfig Shortened(const config::ScenarioConfig& scenario, double duration) {
+  config::ScenarioConfig s = scenario;
+  const double landing_margin = 7.0;
+  s.duration = duration;
+  s.landing_time = duration - landing_margin;
+  if (s.leader_mode == "waypoints") {
+    const double per_leg = s.leg_duration + s.hold_duration;
+    const int legs = std::max(1, static_cast<int>((s.landing_time - s.trajectory_start) / per_leg));
+    if (static_cast<int>(s.waypoints.size()) > legs) s.waypoints.resize(legs);
+  } else {
+    const double per_move = s.walk_max_leg + s.walk_max_hold;
+    s.walk_moves = std::max(1, static_cast<int>((s.landing_time - s.trajectory_start) / per_move));
+  }
+  if (!(s.landing_time > s.trajectory_start)) {
+    throw std::invalid_argument("[Shortened] duration too short for take-off, one leg and landing");
+  }
+  return s;
+}
+
+json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
+                 const std::string& dir) {
+  const double duration = options.duration > 0.0 ? options.duration : sc.duration;
+  const bool manual = sc.leader_mode == "manual";
+  const int nv = static_cast<int>(sc.vehicles.size());
+  const formation::WaypointTrajectory trajectory = LeaderTrajectory(sc, options.seed);
+
+  // ---- World.
+  sim::WorldConfig wc;
+  for (int i = 0; i < nv; ++i) {
+    const auto& v = sc.vehicles[i];
+    sim::VehicleSpec spec;
+    spec.params = v.params;
+    spec.sensors = v.sensors;
+    spec.position = Vec3(v.start.x(), v.start.y(), sim::World::kRestHeight);
+    spec.yaw = v.yaw;
+    if (manual && i == sc.leader) spec.position = sc.manual_start;
+    wc.vehicles.push_back(spec);
+  }
+  wc.visual_geometry = false;
+  wc.downwash.enabled = sc.downwash;
+  wc.battery.fixed_voltage = !sc.battery_sag;
+  wc.seed = options.seed;
+  sim::World world(wc);
+
+  // ---- Controllers (a manually moved leader has none).
+  std::vector<std::unique_ptr<formation::VehicleController>> ctrl(nv);
+  for (int i = 0; i < nv; ++i) {
+    const auto& v = sc.vehicles[i];
+    if (manual && i == sc.leader) continue;
+    formation::ControllerConfig c;
+    c.vehicle = i;
+    c.leader = v.leader;
+    c.params = v.params;
+    c.sensors = v.sensors;
+    c.rti.horizon = sc.horizon;
+    c.rti.sample_time = sc.sample_time;
+    c.rti.integrator_steps = sc.integrator_steps;
+    c.rti.max_iterations = sc.max_iterations;
+    c.rti.max_initial_iterations = sc.max_initial_iterations;
+    c.rti.kkt_threshold = sc.kkt_threshold;
+    c.rti.cpu_budget = sc.cpu_budget;
+    c.weights = Weights(v.leader ? sc.leader_weights : sc.follower_weights);
+    c.thrust_min = sc.thrust_min;
+    c.thrust_max = sc.thrust_max;
+    c.pid.max_thrust = sc.thrust_max;
+    c.max_attitude_ref = sc.max_attitude_ref;
+    c.max_speed = sc.max_speed;
+    for (const auto& n : v.neighbours) c.neighbours.push_back({n.index, n.desired});
+    c.frame = v.frame_control ? ocp::TargetFrame::kControl : ocp::TargetFrame::kInertial;
+    c.relative_position_bound = v.relative_position_bound;
+    c.trajectory = trajectory;
+    c.trajectory_start = sc.trajectory_start;
+    c.takeoff_time = sc.takeoff_time;
+    c.takeoff_height = std::isfinite(v.takeoff_height) ? v.takeoff_height : sc.takeoff_height;
+    c.climb_speed = sc.climb_speed;
+    c.hover_before_switch = sc.hover_before_switch;
+    c.blend_time = sc.blend_time;
+    c.landing_time = config::LandingTime(sc, i);
+    c.descent_speed = sc.descent_speed;
+    c.ground_height = sim::World::kRestHeight;
+    c.use_throttle = sc.use_throttle;
+    ctrl[i] = std::make_unique<formation::VehicleController>(c);
+  }
+
+  // ---- Logs.
+  std::filesystem::create_directories(dir);
+  std::vector<VehicleLog> logs(nv);
+  for (int i = 0; i < nv; ++i) {
+    const auto& v = sc.vehicles[i];
+    VehicleLog& L = logs[i];
+    L.csv = std::make_unique<std::ofstream>(dir + "/" + v.name + ".csv");
+    if (!*L.csv) throw std::runtime_error("cannot write " + dir + "/" + v.name + ".csv");
+    L.nb_errors.resize(v.neighbours.size());
+    L.nb_steady.resize(v.neighbours.size());
+    *L.csv << "t,phase,x,y,z,vx,vy,vz,roll,pitch,yaw,est_x,est_y,est_z,est_vx,est_vy,est_vz,"
+              "est_roll,est_pitch,est_yaw,cmd_thrust,cmd_throttle,cmd_roll,cmd_pitch,cmd_yaw,"
+              "nmpc_thrust,nmpc_roll,nmpc_pitch,ref_x,ref_y,ref_z,tracking_error,"
+              "rel0_x,rel0_y,rel0_z,est_rel0_x,est_rel0_y,est_rel0_z,err0,"
+              "rel1_x,rel1_y,rel1_z,est_rel1_x,est_rel1_y,est_rel1_z,err1,formation_error,"
+              "steady,cost,kkt,solver_time,solver_cpu_time,sqp_iterations,qp_iterations,"
+              "fallback,status,guarded,estimator_rejections,voltage,voltage_measured\n";
+  }
+
+  const double dt = world.physics_dt();
+  const int steps = static_cast<int>(std::lround(duration / dt));
+  const int every = std::max(1, static_cast<int>(std::lround(sc.sample_time / dt)));
+  double min_separation = kInf;
+  const double window_end = config::FormationWindowEnd(sc);
+  std::vector<formation::ControlOutput> prev(nv);
+  Measurement m;
+  int next_progress = 0;
+
+  for (int step = 0; step <= steps; ++step) {
+    const double t = world.time();
+    if (manual) {
+      Vec3 p, v;
+      trajectory.Sample(t - sc.trajectory_start, &p, &v);
+      world.SetState(sc.leader, sc.manual_start + p, Vec3(0, 0, sc.vehicles[sc.leader].yaw), v,
+                     Vec3::Zero());
+    }
+    while (world.PopMeasurement(&m)) {
+      for (auto& c : ctrl) {
+        if (c) c->Process(m);
+      }
+    }
+    if (step % every == 0) {
+      std::vector<sim::TrueState> truth(nv);
+      for (int i = 0; i < nv; ++i) truth[i] = world.GetTrueState(i);
+      for (int i = 0; i < nv; ++i) {
+        for (int j = i + 1; j < nv; ++j) {
+          min_separation = std::min(min_separation, (truth[i].position - truth[j].position).norm());
+        }
+      }
+      // Leader reference and steady-state flag (formation window: trajectory start to landing).
+      Vec3 ref_off, ref_v;
+      trajectory.Sample(t - sc.trajectory_start, &ref_off, &ref_v);
+      const bool window = t >= sc.trajectory_start && t < window_end;
+      const bool steady =
+          window && trajectory.TimeSinceStop(t - sc.trajectory_start) >= sc.settle_time;
+      Vec3 leader_ref = Vec3::Constant(kNaN);
+      if (manual) {
+        leader_ref = sc.manual_start + ref_off;
+      } else if (ctrl[sc.leader] && ctrl[sc.leader]->anchor().allFinite()) {
+        leader_ref = ctrl[sc.leader]->anchor() + ref_off;
+      }
+      for (int i = 0; i < nv; ++i) {
+        const auto& v = sc.vehicles[i];
+        VehicleLog& L = logs[i];
+        formation::ControlOutput out;
+        if (ctrl[i]) {
+          out = ctrl[i]->Control(t);
+          sim::AttitudeCommand cmd;
+          cmd.thrust = out.thrust;
+          cmd.throttle = out.throttle;
+          cmd.roll = out.roll;
+          cmd.pitch = out.pitch;
+          cmd.yaw = out.yaw;
+          world.SetCommand(i, cmd);
+          if (out.nmpc) {
+            ++L.steps;
+            if (std::isnan(L.first_step_time)) {
+              L.first_step_time = out.solver_time;
+              L.max_thrust_jump_at_switch = std::abs(out.thrust - prev[i].thrust);
+            }
+            L.solver_time.push_back(out.solver_time);
+            L.solver_cpu.push_back(out.solver_cpu_time);
+            if (out.solver_time > sc.sample_time) ++L.over_budget;
+            if (out.fallback) ++L.fallbacks;
+            if (out.status != rti::RtiStatus::kSuccess) ++L.failures;
+            L.kkt.push_back(out.kkt);
+            L.cost.push_back(out.cost);
+          }
+          if (out.guarded) ++L.guarded;
+          // Touchdown: the first control step of the landing phase with the true CoM within
+          // 1.5 cm of its resting height (the feet touch); its true vertical speed is kept.
+          if ((out.phase == FlightPhase::kLanding || out.phase == FlightPhase::kLanded) &&
+              std::isnan(L.touchdown_time) &&
+              truth[i].position.z() < sim::World::kRestHeight + 0.015) {
+            L.touchdown_vz = truth[i].velocity.z();
+            L.touchdown_time = t;
+          }
+          if (out.phase == FlightPhase::kLanded) L.motors_off = true;
+          prev[i] = out;
+        } else {
+          out.phase = FlightPhase::kNmpc;
+          out.time = t;
+        }
+        const sim::TrueState& x = truth[i];
+        // Formation errors from the truth: (p_j - p_i) in the target frame minus d_j.
+        std::array<Vec3, 2> rel{Vec3::Constant(kNaN), Vec3::Constant(kNaN)};
+        std::array<Vec3, 2> est_rel{Vec3::Constant(kNaN), Vec3::Constant(kNaN)};
+        std::array<double, 2> err{kNaN, kNaN};
+        double ferr = kNaN;
+        if (!v.leader) {
+          double sum = 0.0;
+          for (std::size_t j = 0; j < v.neighbours.size(); ++j) {
+            Vec3 r = truth[v.neighbours[j].index].position - x.position;
+            if (v.frame_control) r = RotationZ(x.euler.z()).transpose() * r;
+            rel[j] = r;
+            err[j] = (r - v.neighbours[j].desired).norm();
+            sum += err[j];
+            if (ctrl[i] && j < ctrl[i]->estimates().neighbours.size()) {
+              est_rel[j] = ctrl[i]->estimates().neighbours[j].head<3>();
+            }
+            if (window) L.nb_errors[j].push_back(err[j]);
+            if (steady) L.nb_steady[j].push_back(err[j]);
+          }
+          ferr = sum / static_cast<double>(v.neighbours.size());
+          if (window) L.errors.push_back(ferr);
+          if (steady) L.steady_errors.push_back(ferr);
+        }
+        double track = kNaN;
+        if (v.leader && leader_ref.allFinite()) {
+          track = (x.position - leader_ref).norm();
+          if (window && !manual) L.tracking.push_back(track);
+        }
+        const auto& e = ctrl[i] ? ctrl[i]->estimates().own : estimation::VehicleEstimate{};
+        const std::int64_t rej = ctrl[i] ? ctrl[i]->estimator_rejections() : 0;
+        fmt::print(
+            *L.csv,
+            "{:.3f},{},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
+            "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
+            "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
+            "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
+            "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
+            "{:d},{:.6g},{:.6g},{:.6g},{:.6g},{},{},{:d},{},{:d},{},{:.4f},{:.4f}\n",
+            t, formation::ToString(out.phase), x.position.x(), x.position.y(), x.position.z(),
+            x.velocity.x(), x.velocity.y(), x.velocity.z(), x.euler.x(), x.euler.y(), x.euler.z(),
+            e.position.x(), e.position.y(), e.position.z(), e.velocity.x(), e.velocity.y(),
+            e.velocity.z(), e.euler.x(), e.euler.y(), e.euler.z(), out.thrust, out.throttle,
+            out.roll, out.pitch, out.yaw, out.nmpc_thrust, out.nmpc_roll, out.nmpc_pitch,
+            leader_ref.x(), leader_ref.y(), leader_ref.z(), v.leader ? track : kNaN, rel[0].x(),
+            rel[0].y(), rel[0].z(), est_rel[0].x(), est_rel[0].y(), est_rel[0].z(), err[0],
+            rel[1].x(), rel[1].y(), rel[1].z(), est_rel[1].x(), est_rel[1].y(), est_rel[1].z(),
+            err[1], ferr, steady ? 1 : 0, out.cost, out.kkt, out.solver_time, out.solver_cpu_time,
+            out.sqp_iterations, out.qp_iterations, out.fallback ? 1 : 0, rti::ToString(out.status),
+            out.guarded ? 1 : 0, rej, x.voltage, out.voltage);
+      }
+      if (options.progress && t >= next_progress) {
+        std::fprintf(stderr, "\r%s t = %5.1f / %.1f s", options.label.c_str(), t, duration);
+        std::fflush(stderr);
+        next_progress += 5;
+      }
+    }
+    if (step < steps) world.StepOnce();
+  }
+  if (options.progress)
+    std::fprintf(stderr, "\r%s t = %5.1f / %.1f s\n", options.label.c_str(), duration, duration);
+
+  // ---- Metrics.
+  json vehicles = json::object();
+  double steady_worst = kNaN, mean_worst = kNaN, max_worst = kNaN;
+  std::vector<double> all_times;
+  double time_max = 0.0, time_max_first = 0.0;
+  long fallbacks = 0, failures = 0, over_budget = 0, nmpc_steps = 0, guarded = 0;
+  bool landed_safely = true;
+  auto worse = [](double a, double b) {
+    return std::isnan(a) ? b : (std::isnan(b) ? a : std::max(a, b));
+  };
+  for (int i = 0; i < nv; ++i) {
+    const auto& v = sc.vehicles[i];
+    VehicleLog& L = logs[i];
+    L.csv->close();
+    json j;
+    j["role"] = v.leader ? "leader" : "follower";
+    if (!v.leader) {
+      j["formation_error_mean_m"] = Num(Mean(L.errors));
+      j["formation_error_steady_state_mean_m"] = Num(Mean(L.steady_errors));
+      j["formation_error_max_m"] = Num(Max(L.errors));
+      j["steady_state_samples"] = L.steady_errors.size();
+      json nbs = json::object();
+      for (std::size_t n = 0; n < v.neighbours.size(); ++n) {
+        nbs[v.neighbours[n].vehicle] = {{"mean_m", Num(Mean(L.nb_errors[n]))},
+                                        {"steady_state_mean_m", Num(Mean(L.nb_steady[n]))},
+                                        {"max_m", Num(Max(L.nb_errors[n]))}};
+      }
+      j["formation_error_by_neighbour"] = nbs;
+      steady_worst = worse(steady_worst, Mean(L.steady_errors));
+      mean_worst = worse(mean_worst, Mean(L.errors));
+      max_worst = worse(max_worst, Max(L.errors));
+    } else if (!manual) {
+      j["tracking_error_mean_m"] = Num(Mean(L.tracking));
+      j["tracking_error_max_m"] = Num(Max(L.tracking));
+    }
+    if (ctrl[i]) {
+      // Step 0 of the NMPC carries the initial convergence (Algorithm 1: iterate to KKT <
+      // threshold); it is included in the max and reported apart.
+      j["nmpc_steps"] = L.steps;
+      j["solver_time_median_s"] = Num(Median(L.solver_time));
+      j["solver_time_max_s"] = Num(Max(L.solver_time));
+      j["solver_cpu_time_max_s"] = Num(Max(L.solver_cpu));
+      j["solver_time_first_step_s"] = Num(L.first_step_time);
+      j["solver_steps_over_budget_share"] =
+          L.steps > 0 ? static_cast<double>(L.over_budget) / static_cast<double>(L.steps) : 0.0;
+      j["kkt_median"] = Num(Median(L.kkt));
+      j["kkt_max"] = Num(Max(L.kkt));
+      j["cost_median"] = Num(Median(L.cost));
+      j["cost_max"] = Num(Max(L.cost));
+      j["fallbacks"] = L.fallbacks;
+      j["solver_failures"] = L.failures;
+      j["guarded_commands"] = L.guarded;
+      j["estimator_rejections"] = ctrl[i]->estimator_rejections();
+      j["thrust_jump_at_switch_n"] = Num(L.max_thrust_jump_at_switch);
+      const sim::TrueState x = world.GetTrueState(i);
+      const double tilt =
+          std::acos(std::clamp(std::cos(x.euler.x()) * std::cos(x.euler.y()), -1.0, 1.0));
+      const bool touched = std::isfinite(L.touchdown_vz);
+      const bool ok = touched && L.motors_off &&
+                      std::abs(L.touchdown_vz) < sc.touchdown_speed_max &&
+                      tilt < sc.max_tilt_landed && x.position.z() < sim::World::kRestHeight + 0.05;
+      j["touchdown_time_s"] = Num(L.touchdown_time);
+      j["touchdown_vertical_speed_mps"] = Num(L.touchdown_vz);
+      j["final_tilt_rad"] = tilt;
+      j["motors_off_at_end"] = L.motors_off;
+      j["landed_safely"] = ok;
+      landed_safely = landed_safely && ok;
+      all_times.insert(all_times.end(), L.solver_time.begin(), L.solver_time.end());
+      time_max = worse(time_max, Max(L.solver_time));
+      if (L.solver_time.size() > 1) {
+        time_max_first = worse(time_max_first,
+                               *std::max_element(L.solver_time.begin() + 1, L.solver_time.end()));
+      }
+      fallbacks += L.fallbacks;
+      failures += L.failures;
+      over_budget += L.over_budget;
+      nmpc_steps += L.steps;
+      guarded += L.guarded;
+    } else {
+      j["moved_by_hand"] = true;
+    }
+    vehicles[v.name] = j;
+  }
+  json s;
+  s["scenario"] = sc.name;
+  s["seed"] = options.seed;
+  s["duration_s"] = duration;
+  s["downwash"] = sc.downwash;
+  s["steady_state_formation_error_m"] = Num(steady_worst);
+  s["mean_formation_error_m"] = Num(mean_worst);
+  s["max_formation_error_m"] = Num(max_worst);
+  s["solver_time_max_s"] = Num(time_max);
+  s["solver_time_max_after_first_step_s"] = Num(time_max_first);
+  s["solver_time_median_s"] = Num(Median(all_times));
+  s["solver_steps_over_budget_share"] =
+      nmpc_steps > 0 ? static_cast<double>(over_budget) / static_cast<double>(nmpc_steps) : 0.0;
+  s["sample_time_s"] = sc.sample_time;
+  s["nmpc_steps"] = nmpc_steps;
+  s["fallbacks"] = fallbacks;
+  s["solver_failures"] = failures;
+  s["solver_converged_every_step"] = failures == 0 && fallbacks == 0 && nmpc_steps > 0;
+  s["guarded_commands"] = guarded;
+  s["min_separation_m"] = Num(min_separation);
+  s["landed_safely"] = landed_safely;
+  s["vehicles"] = vehicles;
+  std::ofstream(dir + "/summary.json") << s.dump(2) << "\n";
+  return s;
+}
+
+json AggregateRuns(const std::vector<json>& runs) {
+  json a;
+  if (runs.empty()) return a;
+  auto values = [&runs](const std::string& key) {
+    std::vector<double> v;
+    for (const json& r : runs) {
+      if (r.contains(key) && r[key].is_number()) v.push_back(r[key].get<double>());
+    }
+    return v;
+  };
+  a["scenario"] = runs.front()["scenario"];
+  a["runs"] = runs.size();
+  for (const char* k : {"steady_state_formation_error_m", "mean_formation_error_m",
+                        "solver_time_median_s", "solver_steps_over_budget_share"}) {
+    a[k] = Num(Mean(values(k)));
+  }
+  for (const char* k :
+       {"max_formation_error_m", "solver_time_max_s", "solver_time_max_after_first_step_s",
+        "fallbacks", "solver_failures", "guarded_commands"}) {
+    a[k] = Num(Max(values(k)));
+  }
+  {
+    const auto v = values("min_separation_m");
+    a["min_separation_m"] = v.empty() ? json(nullptr) : json(*std::min_element(v.begin(), v.end()));
+  }
+  a["steady_state_formation_error_worst_run_m"] =
+      Num(Max(values("steady_state_formation_error_m")));
+  bool landed = true, converged = true;
+  for (const json& r : runs) {
+    landed = landed && r.value("landed_safely", false);
+    converged = converged && r.value("solver_converged_every_step", false);
+  }
+  a["landed_safely"] = landed;
+  a["solver_converged_every_step"] = converged;
+  a["sample_time_s"] = runs.front()["sample_time_s"];
+  a["aggregation"] =
+      "means: mean over runs; max_*, solver_time_max_*, fallbacks, failures: worst run; "
+      "min_separation_m: smallest; flags: all runs";
+  a["run_summaries"] = runs;
+  return a;
+}
+
+}  // namespace fnmpc::app

@@ -1,0 +1,97 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "fnmpc/config/yaml_reader.hpp"
+#include "fnmpc/core/sensors.hpp"
+#include "fnmpc/core/types.hpp"
+#include "fnmpc/model/vehicle_params.hpp"
+
+/// Formation scenario files (config/scenarios/*.yaml, every key documented in
+/// docs/scenarios.md): plain structs, mapped onto the controllers and the world by the app.
+namespace fnmpc::config {
+
+/// One neighbour of a follower: the observed vehicle and the desired relative position
+/// p_neighbour - p_self [m] in the follower's target frame.
+struct ScenarioNeighbour {
+  std::string vehicle;  ///< name of the neighbour
+  int index = -1;       ///< resolved index into ScenarioConfig::vehicles
+  Vec3 desired = Vec3::Zero();
+};
+
+/// One vehicle of the scenario.
+struct ScenarioVehicle {
+  std::string name;
+  bool leader = false;
+  Vec3 start = Vec3::Zero();  ///< start position x, y [m] (z: resting on the ground)
+  double yaw = 0.0;           ///< initial yaw [rad]
+  model::VehicleParams params;
+  SensorsConfig sensors;
+  std::vector<ScenarioNeighbour> neighbours;    ///< followers: 1 or 2
+  bool frame_control = false;                   ///< desired offsets in {c} (true) or {m} (false)
+  Vec3 relative_position_bound{6.0, 6.0, 2.0};  ///< soft bound on |dx_j| per axis [m]
+  double takeoff_height = kNaN;  ///< per-vehicle take-off height [m]; NaN: phases.takeoff_height
+  double landing_time = kNaN;    ///< per-vehicle start of the landing [s]; NaN: phases.landing_time
+};
+
+/// NMPC weights (see formation::NmpcWeights).
+struct ScenarioWeights {
+  Vec3 position{20, 20, 30}, velocity{2, 2, 2};
+  double attitude = 1.0, thrust = 0.05, attitude_ref = 5.0, terminal_factor = 5.0;
+};
+
+/// The whole scenario.
+struct ScenarioConfig {
+  std::string name;
+  std::string description;
+  std::string file;        ///< path it was read from
+  double duration = 60.0;  ///< simulated time [s]
+  std::uint64_t seed = 1;
+  bool downwash = false;
+  bool battery_sag = true;  ///< false: fixed 16.8 V
+  std::vector<ScenarioVehicle> vehicles;
+  int leader = -1;  ///< index of the leader
+  // Leader motion.
+  std::string leader_mode = "waypoints";  ///< "waypoints" (NMPC) or "manual" (moved by hand)
+  double trajectory_start = 12.0;         ///< [s]
+  std::vector<Vec3> waypoints;            ///< offsets from the hover point [m]
+  double leg_duration = 4.0, hold_duration = 4.0;  ///< [s]
+  Vec3 walk_box{1.15, 1.15, 1.15};                 ///< manual: box size [m] (1.5 m^3)
+  int walk_moves = 8;
+  double walk_min_leg = 1.5, walk_max_leg = 3.0, walk_min_hold = 3.0, walk_max_hold = 5.0;
+  Vec3 manual_start{0.0, 0.0, 1.0};  ///< manual: leader held at this position [m]
+  // Controller.
+  double sample_time = 0.05;
+  int horizon = 15;
+  int integrator_steps = 2;
+  int max_iterations = 1;
+  int max_initial_iterations = 50;
+  double kkt_threshold = 1e-6;
+  double cpu_budget = 0.05;
+  ScenarioWeights leader_weights, follower_weights;
+  double thrust_min = 5.0, thrust_max = 25.0, max_attitude_ref = 0.35, max_speed = 2.0;
+  bool use_throttle = true;
+  // Phases.
+  double takeoff_time = 1.0, takeoff_height = 1.0, climb_speed = 0.5, hover_before_switch = 1.5;
+  double blend_time = 0.5, landing_time = 50.0, descent_speed = 0.3;
+  // Metrics.
+  double settle_time = 3.0;          ///< steady state: reference stopped at least this long [s]
+  double touchdown_speed_max = 0.6;  ///< landed safely: |vz| at touchdown below [m/s]
+  double max_tilt_landed = 0.3;      ///< landed safely: final tilt below [rad]
+};
+
+/// Reads and validates a scenario file; relative file paths (vehicle_file, sensors_file)
+/// are resolved against the scenario's directory. Throws ConfigError with
+/// file:line:column and the key on unknown keys, missing keys and bad values.
+ScenarioConfig LoadScenarioFile(const std::string& path);
+ScenarioConfig ParseScenario(YamlMap map);
+
+/// Effective landing time of vehicle i [s] (its own or the scenario's).
+double LandingTime(const ScenarioConfig& s, int i);
+/// End of the formation window: the earliest landing time of any vehicle [s].
+double FormationWindowEnd(const ScenarioConfig& s);
+
+}  // namespace fnmpc::config
