@@ -22,7 +22,7 @@ void BM_LeaderStep(::benchmark::State& state) {
     solver.Shift();
     SetLeaderReferences(&solver, ref, 2.0 + 0.05 * (k % 40));
     solver.Step(x, &u);
-    benchmark::DoNotOptimize(u);
+    ::benchmark::DoNotOptimize(u);
   }
 }
 BENCHMARK(BM_LeaderStep);
@@ -42,7 +42,7 @@ void BM_LeaderFeedback(::benchmark::State& state) {
     solver.Prepare();
     state.ResumeTiming();
     solver.Feedback(x, &u);
-    benchmark::DoNotOptimize(u);
+    ::benchmark::DoNotOptimize(u);
   }
 }
 BENCHMARK(BM_LeaderFeedback);
@@ -60,7 +60,7 @@ void BM_FollowerStep(::benchmark::State& state) {
     for (auto _ : state) {
       solver.Shift();
       solver.Step(SetReducedFollowerStage<Nn>(&solver, own, nb), &u);
-      benchmark::DoNotOptimize(u);
+      ::benchmark::DoNotOptimize(u);
     }
   } else {
     auto solver = MakeFollowerSolver<Nn>(own, nb);
@@ -69,7 +69,7 @@ void BM_FollowerStep(::benchmark::State& state) {
     for (auto _ : state) {
       solver.Shift();
       solver.Step(FollowerState<Nn>(own, nb), &u);
-      benchmark::DoNotOptimize(u);
+      ::benchmark::DoNotOptimize(u);
     }
   }
 }
