@@ -74,7 +74,7 @@ def main():
     for what, col, log in (("formation_errors", "err", False), ("cost", "cost", True), ("kkt", "kkt", True)):
         fig, axes = plt.subplots(len(followers), 1, figsize=(9, 3.2 * len(followers)), squeeze=False)
         for ax, name in zip(axes[:, 0], followers):
-            nbs = list(runs[0]["vehicles"][name].get("formation_error_by_neighbour", {}).keys())
+            nbs = runs[0]["vehicles"][name].get("neighbours", [])  # order of err0, err1
             for k, run in enumerate(data):
                 c = run.get(name)
                 if c is None:
@@ -90,6 +90,8 @@ def main():
                 ax.set_yscale("log")
             ax.set_ylabel({"err": "|dx - d| [m]", "cost": "NMPC cost", "kkt": "KKT"}[col])
             ax.set_title("%s: %s (%d runs)" % (name, what.replace("_", " "), len(data)))
+            ax.axvspan(summary.get("formation_window_s", [0, 0])[0], summary.get("formation_window_s", [0, 0])[1],
+                       color="g", alpha=0.05, label="formation window" if col == "err" else None)
             ax.grid(True, alpha=0.3)
             ax.legend(loc="upper right")
         axes[-1, 0].set_xlabel("t [s]")

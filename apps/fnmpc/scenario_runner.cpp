@@ -358,6 +358,9 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
                                         {"max_m", Num(Max(L.nb_errors[n]))}};
       }
       j["formation_error_by_neighbour"] = nbs;
+      json order = json::array();  // CSV columns err0, err1 follow this order
+      for (const auto& n : v.neighbours) order.push_back(n.vehicle);
+      j["neighbours"] = order;
       steady_worst = worse(steady_worst, Mean(L.steady_errors));
       mean_worst = worse(mean_worst, Mean(L.errors));
       max_worst = worse(max_worst, Max(L.errors));
@@ -418,6 +421,7 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
   s["seed"] = options.seed;
   s["duration_s"] = duration;
   s["downwash"] = sc.downwash;
+  s["formation_window_s"] = {sc.trajectory_start, window_end};
   s["steady_state_formation_error_m"] = Num(steady_worst);
   s["mean_formation_error_m"] = Num(mean_worst);
   s["max_formation_error_m"] = Num(max_worst);
@@ -474,6 +478,7 @@ json AggregateRuns(const std::vector<json>& runs) {
   a["landed_safely"] = landed;
   a["solver_converged_every_step"] = converged;
   a["sample_time_s"] = runs.front()["sample_time_s"];
+  a["formation_window_s"] = runs.front()["formation_window_s"];
   a["aggregation"] =
       "means: mean over runs; max_*, solver_time_max_*, fallbacks, failures: worst run; "
       "min_separation_m: smallest; flags: all runs";

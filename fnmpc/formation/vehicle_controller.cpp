@@ -529,7 +529,11 @@ ControlOutput VehicleController::Step(double t) {
       roll = c.roll;
       pitch = c.pitch;
       Blend(t, &thrust, &roll, &pitch);
-      if (std::isfinite(z) && z < ground + config_.touchdown_margin && z_ref_ < ground) {
+      // Touchdown: on the ground (height within the margin) and no longer moving down,
+      // so the motors never stop while the vehicle still falls.
+      const bool settled = std::isfinite(own.velocity.z()) && std::abs(own.velocity.z()) < 0.1;
+      if (std::isfinite(z) && z < ground + config_.touchdown_margin && z_ref_ < ground &&
+          (settled || z_ref_ <= ground - 0.3)) {
         phase_ = FlightPhase::kLanded;
         phase_start_ = t;
         thrust = roll = pitch = 0.0;

@@ -78,7 +78,7 @@ struct ControllerConfig {
   double landing_time = 1e9;         ///< start of the PID descent [s]
   double descent_speed = 0.3;        ///< [m/s]
   double ground_height = 0.1;        ///< CoM height when resting on the ground [m]
-  double touchdown_margin = 0.03;    ///< touchdown when within this of the ground height [m]
+  double touchdown_margin = 0.03;    ///< touchdown: within this of the ground, |v_z| < 0.1 m/s [m]
   TakeoffPidConfig pid;
   /// true: command the collective throttle from the thrust and the measured voltage.
   bool use_throttle = true;
