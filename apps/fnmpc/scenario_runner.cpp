@@ -41,18 +41,6 @@ double Mean(const std::vector<double>& v) {
 /// NaN -> null in JSON.
 json Num(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
 
-formation::WaypointTrajectory LeaderTrajectory(const config::ScenarioConfig& s,
-                                               std::uint64_t seed) {
-  if (s.leader_mode == "manual") {
-    return formation::WaypointTrajectory::RandomWalk(s.walk_box, s.walk_moves, s.walk_min_leg,
-                                                     s.walk_max_leg, s.walk_min_hold,
-                                                     s.walk_max_hold, seed * 7919 + 17);
-  }
-  std::vector<Vec3> points{Vec3::Zero()};
-  for (const Vec3& p : s.waypoints) points.push_back(p);
-  return formation::WaypointTrajectory::Uniform(points, s.leg_duration, s.hold_duration);
-}
-
 formation::NmpcWeights Weights(const config::ScenarioWeights& w) {
   formation::NmpcWeights o;
   o.position = w.position;
@@ -81,6 +69,101 @@ struct VehicleLog {
 
 }  // namespace
 
+formation::WaypointTrajectory LeaderTrajectory(const config::ScenarioConfig& s,
+                                               std::uint64_t seed) {
+  if (s.leader_mode == "manual") {
+    return formation::WaypointTrajectory::RandomWalk(s.walk_box, s.walk_moves, s.walk_min_leg,
+                                                     s.walk_max_leg, s.walk_min_hold,
+                                                     s.walk_max_hold, seed * 7919 + 17);
+  }
+  std::vector<Vec3> points{Vec3::Zero()};
+  for (const Vec3& p : s.waypoints) points.push_back(p);
+  return formation::WaypointTrajectory::Uniform(points, s.leg_duration, s.hold_duration);
+}
+
+formation::ControllerConfig ControllerConfigFor(const config::ScenarioConfig& sc, int i,
+                                                const formation::WaypointTrajectory& trajectory) {
+  if (i < 0 || i >= static_cast<int>(sc.vehicles.size())) {
+    throw std::invalid_argument("[ControllerConfigFor] no vehicle " + std::to_string(i) +
+                                " in scenario " + sc.name);
+  }
+  const auto& v = sc.vehicles[i];
+  formation::ControllerConfig c;
+  c.vehicle = i;
+  c.leader = v.leader;
+  c.params = v.params;
+  c.sensors = v.sensors;
+  c.rti.horizon = sc.horizon;
+  c.rti.sample_time = sc.sample_time;
+  c.rti.integrator_steps = sc.integrator_steps;
+  c.rti.max_iterations = sc.max_iterations;
+  c.rti.max_initial_iterations = sc.max_initial_iterations;
+  c.rti.kkt_threshold = sc.kkt_threshold;
+  c.rti.cpu_budget = sc.cpu_budget;
+  c.weights = Weights(v.leader ? sc.leader_weights : sc.follower_weights);
+  c.thrust_min = sc.thrust_min;
+  c.thrust_max = sc.thrust_max;
+  c.pid.max_thrust = sc.thrust_max;
+  c.max_attitude_ref = sc.max_attitude_ref;
+  c.max_speed = sc.max_speed;
+  for (const auto& n : v.neighbours) c.neighbours.push_back({n.index, n.desired});
+  c.frame = v.frame_control ? ocp::TargetFrame::kControl : ocp::TargetFrame::kInertial;
+  c.relative_position_bound = v.relative_position_bound;
+  c.trajectory = trajectory;
+  c.trajectory_start = sc.trajectory_start;
+  c.takeoff_time = sc.takeoff_time;
+  c.takeoff_height = std::isfinite(v.takeoff_height) ? v.takeoff_height : sc.takeoff_height;
+  c.climb_speed = sc.climb_speed;
+  c.hover_before_switch = sc.hover_before_switch;
+  c.blend_time = sc.blend_time;
+  c.landing_time = config::LandingTime(sc, i);
+  c.descent_speed = sc.descent_speed;
+  c.ground_height = sim::World::kRestHeight;
+  c.use_throttle = sc.use_throttle;
+  return c;
+}
+
+sim::WorldConfig WorldConfigFor(const config::ScenarioConfig& sc, std::uint64_t seed) {
+  const bool manual = sc.leader_mode == "manual";
+  const int nv = static_cast<int>(sc.vehicles.size());
+  sim::WorldConfig wc;
+  for (int i = 0; i < nv; ++i) {
+    const auto& v = sc.vehicles[i];
+    sim::VehicleSpec spec;
+    spec.params = v.params;
+    spec.sensors = v.sensors;
+    spec.position = Vec3(v.start.x(), v.start.y(), sim::World::kRestHeight);
+    spec.yaw = v.yaw;
+    if (manual && i == sc.leader) spec.position = sc.manual_start;
+    wc.vehicles.push_back(spec);
+  }
+  wc.visual_geometry = false;
+  wc.downwash.enabled = sc.downwash;
+  wc.battery.fixed_voltage = !sc.battery_sag;
+  wc.seed = seed;
+  return wc;
+}
+
+double FormationError(const config::ScenarioConfig& sc, int i, const std::vector<Vec3>& positions,
+                      double yaw, std::array<double, 2>* per_neighbour,
+                      std::array<Vec3, 2>* relative) {
+  const auto& v = sc.vehicles.at(static_cast<std::size_t>(i));
+  if (per_neighbour) per_neighbour->fill(kNaN);
+  if (relative) relative->fill(Vec3::Constant(kNaN));
+  if (v.leader) return kNaN;
+  double sum = 0.0;
+  for (std::size_t j = 0; j < v.neighbours.size(); ++j) {
+    Vec3 r = positions.at(static_cast<std::size_t>(v.neighbours[j].index)) -
+             positions.at(static_cast<std::size_t>(i));
+    if (v.frame_control) r = RotationZ(yaw).transpose() * r;
+    const double e = (r - v.neighbours[j].desired).norm();
+    if (j < 2 && per_neighbour) (*per_neighbour)[j] = e;
+    if (j < 2 && relative) (*relative)[j] = r;
+    sum += e;
+  }
+  return sum / static_cast<double>(v.neighbours.size());
+}
+
 config::ScenarioConfig Shortened(const config::ScenarioConfig& scenario, double duration) {
   config::ScenarioConfig s = scenario;
   const double landing_margin = 7.0;
@@ -108,61 +191,14 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
   const formation::WaypointTrajectory trajectory = LeaderTrajectory(sc, options.seed);
 
   // ---- World.
-  sim::WorldConfig wc;
-  for (int i = 0; i < nv; ++i) {
-    const auto& v = sc.vehicles[i];
-    sim::VehicleSpec spec;
-    spec.params = v.params;
-    spec.sensors = v.sensors;
-    spec.position = Vec3(v.start.x(), v.start.y(), sim::World::kRestHeight);
-    spec.yaw = v.yaw;
-    if (manual && i == sc.leader) spec.position = sc.manual_start;
-    wc.vehicles.push_back(spec);
-  }
-  wc.visual_geometry = false;
-  wc.downwash.enabled = sc.downwash;
-  wc.battery.fixed_voltage = !sc.battery_sag;
-  wc.seed = options.seed;
-  sim::World world(wc);
+  sim::World world(WorldConfigFor(sc, options.seed));
 
   // ---- Controllers (a manually moved leader has none).
   std::vector<std::unique_ptr<formation::VehicleController>> ctrl(nv);
   for (int i = 0; i < nv; ++i) {
-    const auto& v = sc.vehicles[i];
     if (manual && i == sc.leader) continue;
-    formation::ControllerConfig c;
-    c.vehicle = i;
-    c.leader = v.leader;
-    c.params = v.params;
-    c.sensors = v.sensors;
-    c.rti.horizon = sc.horizon;
-    c.rti.sample_time = sc.sample_time;
-    c.rti.integrator_steps = sc.integrator_steps;
-    c.rti.max_iterations = sc.max_iterations;
-    c.rti.max_initial_iterations = sc.max_initial_iterations;
-    c.rti.kkt_threshold = sc.kkt_threshold;
-    c.rti.cpu_budget = sc.cpu_budget;
-    c.weights = Weights(v.leader ? sc.leader_weights : sc.follower_weights);
-    c.thrust_min = sc.thrust_min;
-    c.thrust_max = sc.thrust_max;
-    c.pid.max_thrust = sc.thrust_max;
-    c.max_attitude_ref = sc.max_attitude_ref;
-    c.max_speed = sc.max_speed;
-    for (const auto& n : v.neighbours) c.neighbours.push_back({n.index, n.desired});
-    c.frame = v.frame_control ? ocp::TargetFrame::kControl : ocp::TargetFrame::kInertial;
-    c.relative_position_bound = v.relative_position_bound;
-    c.trajectory = trajectory;
-    c.trajectory_start = sc.trajectory_start;
-    c.takeoff_time = sc.takeoff_time;
-    c.takeoff_height = std::isfinite(v.takeoff_height) ? v.takeoff_height : sc.takeoff_height;
-    c.climb_speed = sc.climb_speed;
-    c.hover_before_switch = sc.hover_before_switch;
-    c.blend_time = sc.blend_time;
-    c.landing_time = config::LandingTime(sc, i);
-    c.descent_speed = sc.descent_speed;
-    c.ground_height = sim::World::kRestHeight;
-    c.use_throttle = sc.use_throttle;
-    ctrl[i] = std::make_unique<formation::VehicleController>(c);
+    ctrl[i] =
+        std::make_unique<formation::VehicleController>(ControllerConfigFor(sc, i, trajectory));
   }
 
   // ---- Logs.
@@ -208,7 +244,11 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
     }
     if (step % every == 0) {
       std::vector<sim::TrueState> truth(nv);
-      for (int i = 0; i < nv; ++i) truth[i] = world.GetTrueState(i);
+      std::vector<Vec3> positions(nv);
+      for (int i = 0; i < nv; ++i) {
+        truth[i] = world.GetTrueState(i);
+        positions[i] = truth[i].position;
+      }
       for (int i = 0; i < nv; ++i) {
         for (int j = i + 1; j < nv; ++j) {
           min_separation = std::min(min_separation, (truth[i].position - truth[j].position).norm());
@@ -275,20 +315,14 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
         std::array<double, 2> err{kNaN, kNaN};
         double ferr = kNaN;
         if (!v.leader) {
-          double sum = 0.0;
+          ferr = FormationError(sc, i, positions, x.euler.z(), &err, &rel);
           for (std::size_t j = 0; j < v.neighbours.size(); ++j) {
-            Vec3 r = truth[v.neighbours[j].index].position - x.position;
-            if (v.frame_control) r = RotationZ(x.euler.z()).transpose() * r;
-            rel[j] = r;
-            err[j] = (r - v.neighbours[j].desired).norm();
-            sum += err[j];
             if (ctrl[i] && j < ctrl[i]->estimates().neighbours.size()) {
               est_rel[j] = ctrl[i]->estimates().neighbours[j].head<3>();
             }
             if (window) L.nb_errors[j].push_back(err[j]);
             if (steady) L.nb_steady[j].push_back(err[j]);
           }
-          ferr = sum / static_cast<double>(v.neighbours.size());
           if (window) L.errors.push_back(ferr);
           if (steady) L.steady_errors.push_back(ferr);
         }

@@ -1,16 +1,42 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/formation/trajectory.hpp"
+#include "fnmpc/formation/vehicle_controller.hpp"
+#include "fnmpc/sim/world.hpp"
 
 /// Closed loop of a formation scenario: MuJoCo World (1 ms physics, all sensors) plus one
 /// formation::VehicleController per flying vehicle (every Ts), CSV logs and metrics.
 namespace fnmpc::app {
+
+/// Scenario -> library objects: the one mapping used by `fnmpc run` and by the ROS nodes
+/// (ros/fnmpc_ros), so both fly the same controllers in the same world.
+
+/// The leader's reference offsets: the waypoints (from the origin) or, in manual mode, the
+/// random walk seeded from `seed`.
+formation::WaypointTrajectory LeaderTrajectory(const config::ScenarioConfig& scenario,
+                                               std::uint64_t seed);
+/// The controller of vehicle `i` (throws std::invalid_argument on a bad index).
+formation::ControllerConfig ControllerConfigFor(const config::ScenarioConfig& scenario, int i,
+                                                const formation::WaypointTrajectory& trajectory);
+/// The world: every vehicle resting at its start, noise seeded from `seed`.
+sim::WorldConfig WorldConfigFor(const config::ScenarioConfig& scenario, std::uint64_t seed);
+
+/// Formation error of follower `i` from true positions (one per vehicle) and its true yaw:
+/// the mean over its neighbours j of |(p_j - p_i) in its target frame - d_j| [m]; the
+/// per-neighbour errors and relative positions go to `per_neighbour` / `relative` when given
+/// (entries beyond the neighbour count stay NaN). NaN for the leader.
+double FormationError(const config::ScenarioConfig& scenario, int i,
+                      const std::vector<Vec3>& positions, double yaw,
+                      std::array<double, 2>* per_neighbour = nullptr,
+                      std::array<Vec3, 2>* relative = nullptr);
 
 /// Options of one run.
 struct RunOptions {

@@ -96,6 +96,9 @@ class NmpcCore {
   virtual ~NmpcCore() = default;
   virtual void Start(const NmpcInput& in, const Vec3& u_guess) = 0;
   virtual NmpcStep Step(const NmpcInput& in) = 0;
+  /// Predicted positions of the current iterate; `origin` is added to a follower's
+  /// displacement (the leader's states are absolute).
+  virtual void Predicted(const Vec3& origin, std::vector<Vec3>* out) const = 0;
 };
 
 namespace {
@@ -166,6 +169,10 @@ class LeaderCore final : public NmpcCore {
     out.cost = Objective(solver_, solver_.problem(), w_, wn_, yref_, yref_n_, params_);
     out.reference = yref_[0].head<3>();
     return out;
+  }
+
+  void Predicted(const Vec3& /*origin*/, std::vector<Vec3>* out) const override {
+    for (const auto& x : solver_.states()) out->push_back(x.template head<3>());
   }
 
  private:
@@ -256,6 +263,10 @@ class FollowerCore final : public NmpcCore {
     out.kkt = solver_.ComputeKkt(x0);
     out.cost = Objective(solver_, solver_.problem(), w_, wn_, yref_, yref_n_, params_);
     return out;
+  }
+
+  void Predicted(const Vec3& origin, std::vector<Vec3>* out) const override {
+    for (const auto& x : solver_.states()) out->push_back(origin + x.template head<3>());
   }
 
  private:
@@ -429,6 +440,15 @@ ControlOutput VehicleController::Control(double t) {
   }
   const ControlOutput out = Step(t);
   if (ekf_.initialized()) ekf_.SetCommand(t, out.thrust, out.roll, out.pitch, out.yaw);
+  return out;
+}
+
+std::vector<Vec3> VehicleController::PredictedPositions() const {
+  std::vector<Vec3> out;
+  if (phase_ != FlightPhase::kNmpc || !nmpc_) return out;
+  const Vec3 origin =
+      estimates_.own.position.allFinite() ? Vec3(estimates_.own.position) : Vec3(Vec3::Zero());
+  nmpc_->Predicted(origin, &out);
   return out;
 }
 

@@ -152,6 +152,10 @@ class VehicleController {
   [[nodiscard]] double nmpc_start() const { return nmpc_start_; }
   /// Leader: anchor of the trajectory (hover point at the switch) [m].
   [[nodiscard]] const Vec3& anchor() const { return anchor_; }
+  /// Positions predicted by the last NMPC step over its horizon (N + 1 points; empty
+  /// outside the NMPC phase) [m]: leader in {n}; follower in {m}, i.e. its own estimated
+  /// position plus the predicted displacement. For display (ROS nav_msgs/Path); allocates.
+  [[nodiscard]] std::vector<Vec3> PredictedPositions() const;
 
  private:
   ControlOutput Step(double t);
