@@ -1,0 +1,349 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// rostest node: watches a ROS formation flight (sim_node + vehicle nodes) through the sim's
+// ground-truth topics until `duration` of simulated time, optionally kills one vehicle node
+// (SIGKILL) mid-flight and optionally runs `fnmpc run` on the same scenario and seed; then
+// the gtest cases (selected with --gtest_filter in the .test file) assert on what it saw.
+// Metrics are computed with app::FormationError and the runner's window/steady definitions.
+#include <gtest/gtest.h>
+#include <nav_msgs/Odometry.h>
+#include <ros/callback_queue.h>
+#include <ros/master.h>
+#include <ros/network.h>
+#include <ros/ros.h>
+#include <signal.h>
+#include <xmlrpcpp/XmlRpcClient.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+
+#include "apps/fnmpc/scenario_runner.hpp"
+#include "conversions.hpp"
+#include "fnmpc/config/scenario_yaml.hpp"
+
+namespace fnmpc::ros_bridge {
+namespace {
+
+struct Settings {
+  std::string scenario_file;
+  int seed = -1;
+  double duration = 20.0;     // simulated time watched [s]
+  double wall_timeout = 150;  // [s]
+  std::string kill_vehicle;   // vehicle whose node is killed ("" none)
+  double kill_time = 1e9;     // [s] simulated
+  std::string cli;            // fnmpc executable for the comparison ("" none)
+  std::string out_dir;
+};
+
+struct Stats {
+  std::vector<double> errors, steady;  // worst-follower metrics are taken per follower
+};
+
+struct Observed {
+  bool completed = false;
+  double last_time = kNaN;
+  int samples = 0;
+  std::vector<Stats> follower;                       // per vehicle (leaders empty)
+  std::vector<std::vector<double>> pair_after_kill;  // per vehicle: error to live neighbours
+  std::vector<double> min_z_after_kill;              // per vehicle, from kill_time + 1 s
+  std::vector<double> final_z, final_tilt;
+  double min_separation = kInf;
+  std::vector<double> last_diagnostics;  // per vehicle: stamp of the last diagnostics
+  bool killed = false;
+  int killed_pid = -1;
+  std::map<std::string, bool> alive_at_end;  // node name -> alive
+  nlohmann::json cli_summary;
+  int cli_rc = -1;
+};
+
+Settings g_settings;
+config::ScenarioConfig g_scenario;
+Observed g_obs;
+
+double Mean(const std::vector<double>& v) {
+  if (v.empty()) return kNaN;
+  double s = 0.0;
+  for (double x : v) s += x;
+  return s / static_cast<double>(v.size());
+}
+double Max(const std::vector<double>& v) {
+  double m = kNaN;
+  for (double x : v) m = std::isnan(m) ? x : std::max(m, x);
+  return m;
+}
+
+/// PID of a ROS node through its XML-RPC API; -1 when it does not answer (dead).
+int NodePid(const std::string& node) {
+  XmlRpc::XmlRpcValue req, res, payload;
+  req[0] = ros::this_node::getName();
+  req[1] = node;
+  if (!ros::master::execute("lookupNode", req, res, payload, false)) return -1;
+  const std::string uri = payload;
+  std::string host;
+  std::uint32_t port = 0;
+  if (!ros::network::splitURI(uri, host, port)) return -1;
+  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
+  XmlRpc::XmlRpcValue args, result;
+  args[0] = ros::this_node::getName();
+  if (!client.execute("getPid", args, result) || client.isFault()) return -1;
+  if (result.getType() != XmlRpc::XmlRpcValue::TypeArray || result.size() < 3) return -1;
+  const int pid = result[2];
+  return ::kill(pid, 0) == 0 ? pid : -1;
+}
+
+std::string VehicleNodeName(const std::string& vehicle) { return "/" + vehicle + "/vehicle_node"; }
+
+void Watch() {
+  ros::NodeHandle nh;
+  const int nv = static_cast<int>(g_scenario.vehicles.size());
+  const auto trajectory =
+      app::LeaderTrajectory(g_scenario, static_cast<std::uint64_t>(g_settings.seed));
+  const double window_end = config::FormationWindowEnd(g_scenario);
+  g_obs.follower.resize(nv);
+  g_obs.pair_after_kill.resize(nv);
+  g_obs.min_z_after_kill.assign(nv, kInf);
+  g_obs.final_z.assign(nv, kNaN);
+  g_obs.final_tilt.assign(nv, kNaN);
+  g_obs.last_diagnostics.assign(nv, kNaN);
+  int killed_index = -1;
+  for (int i = 0; i < nv; ++i) {
+    if (g_scenario.vehicles[i].name == g_settings.kill_vehicle) killed_index = i;
+  }
+  if (!g_settings.kill_vehicle.empty() && killed_index < 0) {
+    throw std::runtime_error("parameter ~kill_vehicle names no vehicle: " +
+                             g_settings.kill_vehicle);
+  }
+
+  // Truth per control instant (ns stamp) until every vehicle's sample is in.
+  std::map<std::int64_t, std::vector<std::optional<nav_msgs::Odometry>>> pending;
+  std::vector<ros::Subscriber> subs;
+  for (int i = 0; i < nv; ++i) {
+    const std::string ns = "/" + g_scenario.vehicles[i].name + "/";
+    subs.push_back(nh.subscribe<nav_msgs::Odometry>(
+        ns + topics::kGroundTruth, 1000, [&pending, i, nv](const auto& m) {
+          auto& slot = pending[static_cast<std::int64_t>(m->header.stamp.toNSec())];
+          if (slot.empty()) slot.resize(nv);
+          slot[i] = *m;
+        }));
+    subs.push_back(nh.subscribe<fnmpc_ros::SolverDiagnostics>(
+        ns + topics::kDiagnostics, 100,
+        [i](const auto& m) { g_obs.last_diagnostics[i] = m->header.stamp.toSec(); }));
+  }
+
+  const ros::WallTime start = ros::WallTime::now();
+  while (ros::ok() && !g_obs.completed &&
+         (ros::WallTime::now() - start).toSec() < g_settings.wall_timeout) {
+    ros::getGlobalCallbackQueue()->callAvailable(ros::WallDuration(0.01));
+    while (!pending.empty()) {
+      auto it = pending.begin();
+      const bool complete = std::all_of(it->second.begin(), it->second.end(),
+                                        [](const auto& o) { return o.has_value(); });
+      if (!complete) break;
+      const double t = static_cast<double>(it->first) * 1e-9;
+      std::vector<Vec3> pos(nv), vel(nv), euler(nv);
+      for (int i = 0; i < nv; ++i) FromOdometry(*it->second[i], &pos[i], &vel[i], &euler[i]);
+      pending.erase(it);
+      ++g_obs.samples;
+      g_obs.last_time = t;
+      const bool window = t >= g_scenario.trajectory_start && t < window_end;
+      const bool steady = window && trajectory.TimeSinceStop(t - g_scenario.trajectory_start) >=
+                                        g_scenario.settle_time;
+      for (int i = 0; i < nv; ++i) {
+        for (int j = i + 1; j < nv; ++j) {
+          if (i == killed_index || j == killed_index) continue;
+          g_obs.min_separation = std::min(g_obs.min_separation, (pos[i] - pos[j]).norm());
+        }
+        g_obs.final_z[i] = pos[i].z();
+        g_obs.final_tilt[i] =
+            std::acos(std::clamp(std::cos(euler[i].x()) * std::cos(euler[i].y()), -1.0, 1.0));
+        // Until the scheduled landing: from then on every vehicle descends on purpose.
+        if (g_obs.killed && t >= g_settings.kill_time + 1.0 && t < window_end) {
+          g_obs.min_z_after_kill[i] = std::min(g_obs.min_z_after_kill[i], pos[i].z());
+        }
+        const auto& v = g_scenario.vehicles[i];
+        if (v.leader) continue;
+        std::array<double, 2> per{kNaN, kNaN};
+        const double e = app::FormationError(g_scenario, i, pos, euler[i].z(), &per);
+        if (window) g_obs.follower[i].errors.push_back(e);
+        if (steady) g_obs.follower[i].steady.push_back(e);
+        if (g_obs.killed && t >= g_settings.kill_time + 1.0 && window && i != killed_index) {
+          double sum = 0.0;
+          int n = 0;
+          for (std::size_t j = 0; j < v.neighbours.size(); ++j) {
+            if (v.neighbours[j].index == killed_index) continue;
+            sum += per[j];
+            ++n;
+          }
+          if (n > 0) g_obs.pair_after_kill[i].push_back(sum / n);
+        }
+      }
+      if (killed_index >= 0 && !g_obs.killed && t >= g_settings.kill_time) {
+        const int pid = NodePid(VehicleNodeName(g_settings.kill_vehicle));
+        if (pid > 0 && ::kill(pid, SIGKILL) == 0) {
+          g_obs.killed = true;
+          g_obs.killed_pid = pid;
+          ROS_WARN("formation_check: killed %s (pid %d) at t = %.2f s",
+                   VehicleNodeName(g_settings.kill_vehicle).c_str(), pid, t);
+        } else {
+          ROS_ERROR("formation_check: could not kill %s",
+                    VehicleNodeName(g_settings.kill_vehicle).c_str());
+        }
+      }
+      if (t >= g_settings.duration - 1e-9) g_obs.completed = true;
+    }
+  }
+  // Liveness at the end: the sim and every vehicle node (the killed one must be gone).
+  g_obs.alive_at_end["/sim"] = NodePid("/sim") > 0;
+  for (const auto& v : g_scenario.vehicles) {
+    g_obs.alive_at_end[VehicleNodeName(v.name)] = NodePid(VehicleNodeName(v.name)) > 0;
+  }
+  ROS_INFO("formation_check: %d samples up to t = %.2f s in %.1f s wall", g_obs.samples,
+           g_obs.last_time, (ros::WallTime::now() - start).toSec());
+}
+
+void RunCli() {
+  if (g_settings.cli.empty()) return;
+  const std::string dir = g_settings.out_dir + "/cli";
+  const std::string cmd = g_settings.cli + " run '" + g_settings.scenario_file + "' -o '" + dir +
+                          "' --seed " + std::to_string(g_settings.seed) + " -q > /dev/null";
+  g_obs.cli_rc = std::system(cmd.c_str());
+  std::ifstream f(dir + "/run-01/summary.json");
+  if (f) g_obs.cli_summary = nlohmann::json::parse(f);
+}
+
+/// The largest per-follower metric, as `fnmpc run` reports it.
+double WorstFollower(bool steady) {
+  double worst = kNaN;
+  for (std::size_t i = 0; i < g_obs.follower.size(); ++i) {
+    if (g_scenario.vehicles[i].leader) continue;
+    const double m = Mean(steady ? g_obs.follower[i].steady : g_obs.follower[i].errors);
+    worst = std::isnan(worst) ? m : std::max(worst, m);
+  }
+  return worst;
+}
+
+double Param(const char* name) {
+  double v = kNaN;
+  if (!ros::NodeHandle("~").getParam(name, v)) {
+    ADD_FAILURE() << "missing parameter ~" << name;
+  }
+  return v;
+}
+
+// ---- Flight of the whole formation.
+TEST(Triangle, FlewTheWholeDuration) {
+  EXPECT_TRUE(g_obs.completed) << "last ground truth at t = " << g_obs.last_time;
+  EXPECT_GE(g_obs.samples, static_cast<int>(g_settings.duration / g_scenario.sample_time));
+}
+
+TEST(Triangle, FormationErrorWithinBound) {
+  const double mean = WorstFollower(false), steady = WorstFollower(true);
+  ROS_INFO("ROS formation error: window mean %.4f m, steady %.4f m", mean, steady);
+  EXPECT_LE(mean, Param("mean_error_bound"));
+  EXPECT_LE(steady, Param("steady_error_bound"));
+  double worst_max = kNaN;
+  for (const auto& f : g_obs.follower) {
+    if (!f.errors.empty())
+      worst_max = std::isnan(worst_max) ? Max(f.errors) : std::max(worst_max, Max(f.errors));
+  }
+  EXPECT_LE(worst_max, Param("max_error_bound"));
+  EXPECT_GT(g_obs.min_separation, 1.0);
+}
+
+TEST(Triangle, NoNodeDied) {
+  for (const auto& [node, alive] : g_obs.alive_at_end) EXPECT_TRUE(alive) << node << " died";
+  for (std::size_t i = 0; i < g_obs.last_diagnostics.size(); ++i) {
+    EXPECT_GE(g_obs.last_diagnostics[i], g_settings.duration - 0.5)
+        << g_scenario.vehicles[i].name << " stopped publishing diagnostics";
+  }
+}
+
+// ---- One follower's node killed mid-flight.
+TEST(KillFollower, KilledNodeIsGoneOthersAlive) {
+  ASSERT_TRUE(g_obs.killed);
+  for (const auto& [node, alive] : g_obs.alive_at_end) {
+    if (node == VehicleNodeName(g_settings.kill_vehicle)) {
+      EXPECT_FALSE(alive) << node << " still alive";
+    } else {
+      EXPECT_TRUE(alive) << node << " died";
+    }
+  }
+  for (std::size_t i = 0; i < g_scenario.vehicles.size(); ++i) {
+    if (g_scenario.vehicles[i].name == g_settings.kill_vehicle) continue;
+    EXPECT_GE(g_obs.last_diagnostics[i], g_settings.duration - 0.5)
+        << g_scenario.vehicles[i].name << " stopped publishing diagnostics";
+  }
+}
+
+TEST(KillFollower, OthersKeepFlyingAndFormation) {
+  ASSERT_TRUE(g_obs.completed);
+  const double min_alt = Param("min_altitude");
+  const double pair_bound = Param("pair_error_bound");
+  for (std::size_t i = 0; i < g_scenario.vehicles.size(); ++i) {
+    const auto& v = g_scenario.vehicles[i];
+    if (v.name == g_settings.kill_vehicle) {
+      // The failsafe set it down upright.
+      EXPECT_LT(g_obs.final_z[i], 0.2) << v.name << " did not land in failsafe";
+      EXPECT_LT(g_obs.final_tilt[i], 0.3) << v.name << " tipped over";
+      continue;
+    }
+    EXPECT_GT(g_obs.min_z_after_kill[i], min_alt) << v.name << " lost altitude";
+    EXPECT_LT(g_obs.final_tilt[i], 0.3) << v.name;
+    if (!v.leader) {
+      ASSERT_FALSE(g_obs.pair_after_kill[i].empty());
+      const double mean = Mean(g_obs.pair_after_kill[i]), mx = Max(g_obs.pair_after_kill[i]);
+      ROS_INFO("%s error to its live neighbours after the kill: mean %.3f m, max %.3f m",
+               v.name.c_str(), mean, mx);
+      EXPECT_LE(mean, pair_bound);
+    }
+  }
+  EXPECT_GT(g_obs.min_separation, 1.0);
+}
+
+// ---- ROS vs `fnmpc run`.
+TEST(VsCli, FormationErrorMatchesCliWithin20Percent) {
+  ASSERT_TRUE(g_obs.completed);
+  ASSERT_EQ(g_obs.cli_rc, 0) << "fnmpc run failed";
+  ASSERT_TRUE(g_obs.cli_summary.contains("mean_formation_error_m"));
+  const double cli = g_obs.cli_summary["mean_formation_error_m"].get<double>();
+  const double cli_steady = g_obs.cli_summary["steady_state_formation_error_m"].get<double>();
+  const double ros = WorstFollower(false), ros_steady = WorstFollower(true);
+  ROS_INFO(
+      "formation error window mean: ROS %.5f m, CLI %.5f m (%.2f %%); steady: ROS %.5f m, "
+      "CLI %.5f m",
+      ros, cli, 100.0 * (ros - cli) / cli, ros_steady, cli_steady);
+  EXPECT_LE(std::abs(ros - cli), 0.2 * cli);
+  EXPECT_LE(std::abs(ros_steady - cli_steady), 0.2 * cli_steady);
+}
+
+}  // namespace
+}  // namespace fnmpc::ros_bridge
+
+int main(int argc, char** argv) {
+  using namespace fnmpc::ros_bridge;
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "formation_check");
+  ros::NodeHandle pnh("~");
+  try {
+    g_settings.scenario_file = RequiredParam(pnh, "scenario");
+    g_scenario = fnmpc::config::LoadScenarioFile(g_settings.scenario_file);
+    pnh.param("seed", g_settings.seed, -1);
+    if (g_settings.seed < 0) g_settings.seed = static_cast<int>(g_scenario.seed);
+    pnh.param("duration", g_settings.duration, g_settings.duration);
+    pnh.param("wall_timeout", g_settings.wall_timeout, g_settings.wall_timeout);
+    pnh.param("kill_vehicle", g_settings.kill_vehicle, std::string());
+    pnh.param("kill_time", g_settings.kill_time, g_settings.kill_time);
+    pnh.param("cli", g_settings.cli, std::string());
+    const char* tmp = std::getenv("ROS_LOG_DIR");
+    pnh.param("out_dir", g_settings.out_dir, std::string(tmp ? tmp : "/tmp") + "/formation_check");
+    Watch();
+    RunCli();  // after the flight: the sim is idle then and the CLI run gets the CPU
+  } catch (const std::exception& e) {
+    ROS_FATAL("formation_check: %s", e.what());
+    return 1;
+  }
+  return RUN_ALL_TESTS();
+}
