@@ -19,7 +19,7 @@ ros_packages=(
   ros-std-msgs ros-geometry-msgs ros-sensor-msgs ros-nav-msgs
   python3-rosmaster python3-roslaunch rosout librostest-dev python3-rostest librosbag-dev catkin
   ros-message-generation python3-rosbag python3-rostopic python3-rosnode rosbash
-  python3-geometry-msgs python3-sensor-msgs
+  python3-geometry-msgs python3-sensor-msgs python3-nav-msgs libros-rosgraph-msgs-dev
 )
 if [[ "${1:-}" == "--with-ros" ]]; then packages+=("${ros_packages[@]}"); fi
 
