@@ -2,6 +2,7 @@
 #include "fnmpc/config/vehicle_yaml.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -55,7 +56,8 @@ TEST(VehicleYamlTest, RoundTripThroughSave) {
   p.has_bias = true;
   p.bias.roll = 0.02;
   p.bias.thrust_scale = 0.97;
-  const auto path = std::filesystem::temp_directory_path() / "fnmpc_vehicle_roundtrip.yaml";
+  const auto path = std::filesystem::temp_directory_path() /
+                    ("fnmpc_vehicle_roundtrip_" + std::to_string(getpid()) + ".yaml");
   SaveVehicleFile(p, path.string());
   const auto q = LoadVehicleFile(path.string());
   EXPECT_TRUE(q.has_bias);

@@ -2,6 +2,7 @@
 // A shortened triangle scenario (take-off, one leader leg and its hold, landing) run end to
 // end in the MuJoCo simulator with every sensor and estimator in the loop.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <string>
@@ -18,7 +19,8 @@ TEST(FormationFlightTest, ShortTriangleKeepsFormationAndLands) {
       config::LoadScenarioFile(std::string(FNMPC_SOURCE_DIR) + "/config/scenarios/triangle.yaml");
   sc.trajectory_start = 8.0;
   sc = Shortened(sc, 30.0);
-  const std::string dir = testing::TempDir() + "/fnmpc-integration-triangle";
+  const std::string dir =
+      testing::TempDir() + "/fnmpc-integration-triangle-" + std::to_string(getpid());
   std::filesystem::remove_all(dir);
   // When it runs in closed loop
   RunOptions o;

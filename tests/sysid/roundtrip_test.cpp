@@ -12,6 +12,8 @@
 #include <sstream>
 #include <string>
 
+#include <unistd.h>
+
 #include "fnmpc/config/vehicle_yaml.hpp"
 
 namespace fnmpc {
@@ -39,7 +41,9 @@ std::string Slurp(const fs::path& p) {
 class RoundTripTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = fs::path(::testing::TempDir()) / "fnmpc_sysid_roundtrip";
+    // One directory per process: ctest runs each test of this suite as its own process,
+    // in parallel, and each runs the whole pipeline in SetUpTestSuite.
+    dir_ = fs::path(::testing::TempDir()) / ("fnmpc_sysid_roundtrip_" + std::to_string(getpid()));
     fs::remove_all(dir_);
     fs::create_directories(dir_ / "out");
     synth_rc_ = RunApp("sysid synth '" + (dir_ / "c").string() + "'", dir_ / "synth.log");
@@ -51,6 +55,7 @@ class RoundTripTest : public ::testing::Test {
                            (dir_ / "out" / "calibrated.yaml").string() + "' --no-plots",
                        dir_ / "calibrate.log");
   }
+  static void TearDownTestSuite() { fs::remove_all(dir_); }
   static inline fs::path dir_;
   static inline int synth_rc_ = -1, sysid_rc_ = -1, calib_rc_ = -1;
 };
