@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -104,6 +105,12 @@ class RtiSolver {
     qp_solver_ = std::make_unique<qp::DenseQpSolver>(qp::DenseQpDims{nz_, nc_}, settings_.qp);
     qp_.A.setZero();
     qp_.H.setZero();
+    if (nsl_ > 0) {
+      const qp::DenseQpDims hard{n_ * kNu, nc_};
+      qp_no_slack_ = qp::DenseQp(hard);
+      qp_no_slack_solution_ = qp::QpSolution(hard);
+      qp_no_slack_solver_ = std::make_unique<qp::DenseQpSolver>(hard, settings_.qp);
+    }
   }
 
   // ---- Stage data (call before Prepare(); no allocation) ----
@@ -161,9 +168,9 @@ class RtiSolver {
     Mat<kNy, kNx> yx;
     Mat<kNy, kNu> yu;
     for (int k = 0; k < n_; ++k) {
-      const X next = model::Rk4<Model>(x_[k], u_[k], params_[k][0], problem_.params,
-                                       settings_.sample_time, settings_.integrator_steps, &a_[k],
-                                       &b_[k]);
+      const X next =
+          model::Rk4<Model>(x_[k], u_[k], params_[k][0], problem_.params, settings_.sample_time,
+                            settings_.integrator_steps, &a_[k], &b_[k]);
       d_[k] = next - x_[k + 1];
       problem_.StageResidual(x_[k], u_[k], params_[k], &y, &yx, &yu);
       const Y wr = w_.cwiseProduct(y - yref_[k]);
@@ -173,8 +180,8 @@ class RtiSolver {
       r_mat_[k].noalias() = yu.transpose() * w_.asDiagonal() * yu;
       q_vec_[k].noalias() = yx.transpose() * wr;
       r_vec_[k].noalias() = yu.transpose() * wr;
-      finite = finite && d_[k].allFinite() && a_[k].allFinite() && b_[k].allFinite() &&
-               wr.allFinite();
+      finite =
+          finite && d_[k].allFinite() && a_[k].allFinite() && b_[k].allFinite() && wr.allFinite();
     }
     {
       YN yn;
@@ -231,7 +238,9 @@ class RtiSolver {
         qp_.lbA[r] = row.kind == 2 ? -kInf : lb;
         qp_.ubA[r] = row.kind == 1 ? kInf : ub;
       }
-      const qp::QpStatus qs = qp_solver_->Solve(qp_, &qp_solution_);
+      const qp::QpStatus qs = nsl_ > 0 && SolveWithoutSlacks()
+                                  ? qp::QpStatus::kOptimal
+                                  : qp_solver_->Solve(qp_, &qp_solution_);
       stats_.qp_status = qs;
       stats_.qp_iterations += qp_solution_.iterations;
       if (qs != qp::QpStatus::kOptimal) {
@@ -312,7 +321,8 @@ class RtiSolver {
     if (!has_multipliers_) return kInf;
     // Dynamics multipliers from the QP (at its linearisation point).
     std::fill(mu_.begin(), mu_.end(), X::Zero());
-    for (int r = 0; r < nc_; ++r) mu_[rows_[r].stage][rows_[r].index] += qp_solution_.y_constraints[r];
+    for (int r = 0; r < nc_; ++r)
+      mu_[rows_[r].stage][rows_[r].index] += qp_solution_.y_constraints[r];
     lambda_[n_] = q_mat_[n_] * dx_[n_] + q_vec_[n_] + mu_[n_];
     for (int k = n_ - 1; k >= 1; --k) {
       X l = q_vec_[k] + mu_[k];
@@ -396,6 +406,45 @@ class RtiSolver {
     int kind;   // 0 hard two-sided, 1 soft lower, 2 soft upper
   };
 
+  // Soft bounds are rarely violated, and then the QP without slack variables (soft bounds
+  // made hard) has the soft QP's solution with zero slacks, provided each stage's bound
+  // multipliers sum to at most the linear penalty (the exact-penalty condition). Trying it
+  // first saves the N slack variables and the N active-set additions that pin them at zero.
+  // Returns false (and the full soft QP is solved) when it is infeasible or the condition
+  // fails.
+  bool SolveWithoutSlacks() {
+    const int nv = n_ * kNu;
+    qp_no_slack_.g = qp_.g.head(nv);
+    qp_no_slack_.lb = qp_.lb.head(nv);
+    qp_no_slack_.ub = qp_.ub.head(nv);
+    qp_no_slack_.lbA = qp_.lbA;
+    qp_no_slack_.ubA = qp_.ubA;
+    if (qp_no_slack_solver_->Solve(qp_no_slack_, &qp_no_slack_solution_) !=
+        qp::QpStatus::kOptimal) {
+      return false;
+    }
+    const qp::QpSolution& hard = qp_no_slack_solution_;
+    // Slack bound multiplier of stage k (stationarity in s_k at s_k = 0): the soft rows'
+    // multipliers enter with A = +1 (lower, y <= 0) and -1 (upper, y >= 0).
+    auto slack_bound = qp_solution_.y_bounds.tail(nsl_);
+    slack_bound.setConstant(-settings_.soft_linear_weight);
+    for (int r = 0; r < nc_; ++r) {
+      if (rows_[r].kind != 0) slack_bound[rows_[r].stage - 1] += std::abs(hard.y_constraints[r]);
+    }
+    if (slack_bound.maxCoeff() > 0.0) return false;
+    qp_solution_.x.head(nv) = hard.x;
+    qp_solution_.x.tail(nsl_).setZero();
+    qp_solution_.y_bounds.head(nv) = hard.y_bounds;
+    qp_solution_.y_constraints = hard.y_constraints;
+    qp_solution_.iterations = hard.iterations;
+    qp_solution_.status = hard.status;
+    qp_solution_.objective = hard.objective;
+    qp_solution_.num_active = hard.num_active + nsl_;
+    qp_solution_.num_drops = hard.num_drops;
+    qp_solution_.num_warm_start_adds = hard.num_warm_start_adds;
+    return true;
+  }
+
   // Dense condensing of the Hessian and the constraint rows (independent of x0).
   void Condense() {
     // G_{k,j} = d x_k / d u_j: block row k-1, block column j < k.
@@ -461,6 +510,10 @@ class RtiSolver {
       qp_.A.row(r).head(n_ * kNu) = g_.row((row.stage - 1) * kNx + row.index);
       if (row.kind != 0) qp_.A(r, n_ * kNu + row.stage - 1) = row.kind == 1 ? 1.0 : -1.0;
     }
+    if (nsl_ > 0) {
+      qp_no_slack_.H = qp_.H.topLeftCorner(n_ * kNu, n_ * kNu);
+      qp_no_slack_.A = qp_.A.leftCols(n_ * kNu);
+    }
   }
 
   Problem problem_;
@@ -492,6 +545,10 @@ class RtiSolver {
   qp::DenseQp qp_;
   qp::QpSolution qp_solution_;
   std::unique_ptr<qp::DenseQpSolver> qp_solver_;
+  // The QP without slack variables, tried first (SolveWithoutSlacks); only with soft bounds.
+  qp::DenseQp qp_no_slack_;
+  qp::QpSolution qp_no_slack_solution_;
+  std::unique_ptr<qp::DenseQpSolver> qp_no_slack_solver_;
   RtiStats stats_;
   bool prepared_ = false;
   bool first_call_ = true;
