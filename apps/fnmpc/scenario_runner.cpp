@@ -211,13 +211,7 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
     if (!*L.csv) throw std::runtime_error("cannot write " + dir + "/" + v.name + ".csv");
     L.nb_errors.resize(v.neighbours.size());
     L.nb_steady.resize(v.neighbours.size());
-    *L.csv << "t,phase,x,y,z,vx,vy,vz,roll,pitch,yaw,est_x,est_y,est_z,est_vx,est_vy,est_vz,"
-              "est_roll,est_pitch,est_yaw,cmd_thrust,cmd_throttle,cmd_roll,cmd_pitch,cmd_yaw,"
-              "nmpc_thrust,nmpc_roll,nmpc_pitch,ref_x,ref_y,ref_z,tracking_error,"
-              "rel0_x,rel0_y,rel0_z,est_rel0_x,est_rel0_y,est_rel0_z,err0,"
-              "rel1_x,rel1_y,rel1_z,est_rel1_x,est_rel1_y,est_rel1_z,err1,formation_error,"
-              "steady,cost,kkt,solver_time,solver_cpu_time,sqp_iterations,qp_iterations,"
-              "fallback,status,guarded,estimator_rejections,voltage,voltage_measured\n";
+    *L.csv << kVehicleLogCsvHeader;
   }
 
   const double dt = world.physics_dt();

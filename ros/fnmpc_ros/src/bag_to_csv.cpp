@@ -128,13 +128,7 @@ int Convert(const std::string& bag_file, const std::string& scenario_file, const
     const bool have_truth = !d.truth.empty();
     std::ofstream csv(dir + "/" + v.name + ".csv");
     if (!csv) throw std::runtime_error("cannot write " + dir + "/" + v.name + ".csv");
-    csv << "t,phase,x,y,z,vx,vy,vz,roll,pitch,yaw,est_x,est_y,est_z,est_vx,est_vy,est_vz,"
-           "est_roll,est_pitch,est_yaw,cmd_thrust,cmd_throttle,cmd_roll,cmd_pitch,cmd_yaw,"
-           "nmpc_thrust,nmpc_roll,nmpc_pitch,ref_x,ref_y,ref_z,tracking_error,"
-           "rel0_x,rel0_y,rel0_z,est_rel0_x,est_rel0_y,est_rel0_z,err0,"
-           "rel1_x,rel1_y,rel1_z,est_rel1_x,est_rel1_y,est_rel1_z,err1,formation_error,"
-           "steady,cost,kkt,solver_time,solver_cpu_time,sqp_iterations,qp_iterations,"
-           "fallback,status,guarded,estimator_rejections,voltage,voltage_measured\n";
+    csv << app::kVehicleLogCsvHeader;
     std::vector<double> errors, steady_errors, tracking, solver_time;
     long fallbacks = 0, steps = 0;
     for (const auto& [stamp, sp] : d.setpoints) {
