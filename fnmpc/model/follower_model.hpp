@@ -31,8 +31,8 @@ struct FollowerModel {
 
   template <class S>
   static Eigen::Matrix<S, kNx, 1> Flow(const Eigen::Matrix<S, kNx, 1>& x,
-                                      const Eigen::Matrix<S, kNu, 1>& u, double psi_ref,
-                                      const AttitudeModelParams& m) {
+                                       const Eigen::Matrix<S, kNu, 1>& u, double psi_ref,
+                                       const AttitudeModelParams& m) {
     Eigen::Matrix<S, kNx, 1> f = Eigen::Matrix<S, kNx, 1>::Zero();
     f.template segment<3>(kVel) = BodyZ<S>(x[kPhi], x[kTheta], x[kPsi]) * (u[0] / m.mass);
     f[kVel + 2] -= S(kGravity);
@@ -85,6 +85,55 @@ struct FollowerModel {
     out->template block<3, 1>(kVel, 0) += jac.dv_dthrust;
     (*out)(kPhi, 1) += jac.dangle_dref[0];
     (*out)(kTheta, 2) += jac.dangle_dref[1];
+  }
+
+  /// RK4 over one interval (as Rk4 in rk4.hpp) with A = dx(dt)/dx(0), B = dx(dt)/du. The
+  /// own rows come from OwnInterval; a neighbour block is linear: dx_j(dt) = dx_j + dt v_j
+  /// minus the own displacement, so its rows are constant up to minus the displacement's
+  /// sensitivity. Writes only the structural nonzeros of A and B: the other entries must
+  /// be zero on entry (they are the same for every call).
+  static Vec<kNx> Discretise(const Vec<kNx>& x, const Vec<kNu>& u, double psi_ref,
+                             const AttitudeModelParams& m, double dt, int steps, Mat<kNx, kNx>* A,
+                             Mat<kNx, kNu>* B) {
+    using N = NeighbourIndex;
+    const OwnInterval r = OwnInterval::Integrate(
+        x.template segment<3>(kVel), x.template segment<3>(kPhi), u, psi_ref, m, dt, steps);
+    Vec<kNx> next;
+    next.template segment<3>(kVel) = r.velocity;
+    next.template segment<3>(kPhi) = r.angles;
+    for (int j = 0; j < Neighbours; ++j) {
+      const int o = Neighbour(j);
+      next.template segment<3>(o + N::kRelPos) = x.template segment<3>(o + N::kRelPos) +
+                                                 dt * x.template segment<3>(o + N::kVel) -
+                                                 r.displacement;
+      next.template segment<3>(o + N::kVel) = x.template segment<3>(o + N::kVel);
+      next[o + N::kYaw] = x[o + N::kYaw] + dt * x[o + N::kYawRate];
+      next[o + N::kYawRate] = x[o + N::kYawRate];
+    }
+    if (A == nullptr || B == nullptr) return next;
+    for (int i = 0; i < 3; ++i) {
+      (*A)(kVel + i, kVel + i) = 1.0;
+      (*A)(kPhi + i, kPhi + i) = r.dangle_dangle0[i];
+    }
+    A->template block<3, 3>(kVel, kPhi) = r.dv.template leftCols<3>();
+    B->template block<3, 3>(kVel, 0) = r.dv.template rightCols<3>();
+    (*B)(kPhi, 1) = r.dangle_dref[0];
+    (*B)(kTheta, 2) = r.dangle_dref[1];
+    for (int j = 0; j < Neighbours; ++j) {
+      const int o = Neighbour(j);
+      for (int i = 0; i < 3; ++i) {
+        (*A)(o + i, o + i) = 1.0;
+        (*A)(o + i, o + N::kVel + i) = dt;
+        (*A)(o + i, kVel + i) = -dt;
+        (*A)(o + N::kVel + i, o + N::kVel + i) = 1.0;
+      }
+      A->template block<3, 3>(o, kPhi) = -r.dp.template leftCols<3>();
+      B->template block<3, 3>(o, 0) = -r.dp.template rightCols<3>();
+      (*A)(o + N::kYaw, o + N::kYaw) = 1.0;
+      (*A)(o + N::kYaw, o + N::kYawRate) = dt;
+      (*A)(o + N::kYawRate, o + N::kYawRate) = 1.0;
+    }
+    return next;
   }
 
   static void FlowJacobian(const Vec<kNx>& x, const Vec<kNu>& u, double psi_ref,

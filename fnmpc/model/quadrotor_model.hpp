@@ -12,9 +12,9 @@ namespace fnmpc::model {
 /// The constants of the NMPC prediction model: mass and the identified first-order
 /// closed-loop attitude dynamics (roll, pitch, yaw) of the reference work, Eqs. (2)-(4).
 struct AttitudeModelParams {
-  double mass = 1.37;                                ///< [kg]
+  double mass = 1.37;                                     ///< [kg]
   Eigen::Vector3d time_constant{0.1203, 0.1303, 0.0651};  ///< tau_i [s]
-  Eigen::Vector3d gain{1.01, 1.02, 0.99};            ///< k_i [-]
+  Eigen::Vector3d gain{1.01, 1.02, 0.99};                 ///< k_i [-]
 
   static AttitudeModelParams From(const VehicleParams& v) {
     return {v.mass, v.attitude_time_constant, v.attitude_gain};
@@ -30,8 +30,31 @@ struct OwnDynamicsJacobian {
   Vec3 dangle_dref;    ///< diagonal: k_i/tau_i (phi_ref, theta_ref; yaw's is online data)
   Vec3 vdot;           ///< v'
   Vec3 angle_dot;      ///< angle'
-  static OwnDynamicsJacobian At(double phi, double theta, double psi, const Vec3& u,
-                                double psi_ref, const AttitudeModelParams& m);
+  static OwnDynamicsJacobian At(double phi, double theta, double psi, const Vec3& u, double psi_ref,
+                                const AttitudeModelParams& m);
+};
+
+/// One RK4 shooting interval of the quadrotor's own dynamics (displacement, velocity,
+/// attitude) with the exact sensitivities of the discrete map, kept in the structured form
+/// the dynamics imply: v' does not depend on p or v and the three angles are decoupled
+/// and linear, so d p/d p0 = I, d p/d v0 = dt I, d v/d v0 = I, the angle rows are
+/// diagonal, and only d(p, v)/d(angles0, u) (3 x 6 each) and two scalars per angle are
+/// propagated through the RK4 stages. This is the same discrete map and derivative as
+/// the generic Rk4 (tests compare them to 1e-12) for a fraction of its arithmetic.
+struct OwnInterval {
+  /// Columns of dp and dv: (phi0, theta0, psi0, T, phi_ref, theta_ref).
+  static constexpr int kCols = 6;
+  Vec3 displacement;            ///< p(dt) - p(0) [m]
+  Vec3 velocity;                ///< v(dt) [m/s]
+  Vec3 angles;                  ///< (phi, theta, psi)(dt) [rad]
+  Mat<3, kCols> dp;             ///< d displacement / d(angles0, u)
+  Mat<3, kCols> dv;             ///< d v(dt) / d(angles0, u)
+  Vec3 dangle_dangle0;          ///< d angle_i(dt) / d angle_i(0)
+  Eigen::Vector2d dangle_dref;  ///< d (phi, theta)(dt) / d (phi_ref, theta_ref)
+
+  /// Integrates from (v0, angles0) under input u over dt in `steps` RK4 steps.
+  static OwnInterval Integrate(const Vec3& v0, const Vec3& angles0, const Vec3& u, double psi_ref,
+                               const AttitudeModelParams& m, double dt, int steps);
 };
 
 /// Quadrotor with first-order closed-loop attitude (problem L of the benchmark spec).
@@ -49,8 +72,8 @@ struct QuadrotorModel {
   /// Time derivative, templated on the scalar for automatic differentiation in tests.
   template <class S>
   static Eigen::Matrix<S, kNx, 1> Flow(const Eigen::Matrix<S, kNx, 1>& x,
-                                      const Eigen::Matrix<S, kNu, 1>& u, double psi_ref,
-                                      const AttitudeModelParams& m) {
+                                       const Eigen::Matrix<S, kNu, 1>& u, double psi_ref,
+                                       const AttitudeModelParams& m) {
     Eigen::Matrix<S, kNx, 1> f;
     f.template segment<3>(kPos) = x.template segment<3>(kVel);
     f.template segment<3>(kVel) = BodyZ<S>(x[kPhi], x[kTheta], x[kPsi]) * (u[kThrust] / m.mass);
@@ -78,14 +101,21 @@ struct QuadrotorModel {
   /// out += f_u, with out a kNx x kNu block.
   template <class Out>
   static void AddFu(const Jacobian& jac, Out* out);
-};
 
+  /// RK4 over one interval (as Rk4 in rk4.hpp) with the sensitivities A = dx(dt)/dx(0),
+  /// B = dx(dt)/du from OwnInterval. Writes only the structural nonzeros of A and B: the
+  /// other entries must be zero on entry (they are the same for every call).
+  static Vec<kNx> Discretise(const Vec<kNx>& x, const Vec<kNu>& u, double psi_ref,
+                             const AttitudeModelParams& m, double dt, int steps, Mat<kNx, kNx>* A,
+                             Mat<kNx, kNu>* B);
+};
 
 template <class In, class Out>
 void QuadrotorModel::MultiplyFx(const Jacobian& jac, const In& s, Out* out) {
   out->template middleRows<3>(kPos) = s.template middleRows<3>(kVel);
   out->template middleRows<3>(kVel).noalias() = jac.dv_dangles * s.template middleRows<3>(kPhi);
-  out->template middleRows<3>(kPhi) = jac.dangle_dangle.asDiagonal() * s.template middleRows<3>(kPhi);
+  out->template middleRows<3>(kPhi) =
+      jac.dangle_dangle.asDiagonal() * s.template middleRows<3>(kPhi);
 }
 
 template <class Out>

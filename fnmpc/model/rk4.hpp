@@ -1,6 +1,9 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
+#include <type_traits>
+#include <utility>
+
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/model/quadrotor_model.hpp"
 
@@ -60,6 +63,41 @@ Vec<Model::kNx> Rk4(const Vec<Model::kNx>& x0, const Vec<Model::kNu>& u, double 
   *A = S.template leftCols<nx>();
   *B = S.template rightCols<nu>();
   return x;
+}
+
+/// Models whose RK4 interval map with sensitivities is derived by hand in structured form
+/// (QuadrotorModel, FollowerModel): Model::Discretise. A detection trait, not a concept,
+/// because the ROS nodes include this header from C++17 translation units (ROS 1's message
+/// headers do not compile as C++20).
+template <class Model, class = void>
+struct HasStructuredDiscretisation : std::false_type {};
+template <class Model>
+struct HasStructuredDiscretisation<
+    Model, std::void_t<decltype(Model::Discretise(
+               std::declval<const Vec<Model::kNx>&>(), std::declval<const Vec<Model::kNu>&>(),
+               0.0, std::declval<const AttitudeModelParams&>(), 0.0, 1,
+               std::declval<Mat<Model::kNx, Model::kNx>*>(),
+               std::declval<Mat<Model::kNx, Model::kNu>*>()))>>
+    : std::is_same<decltype(Model::Discretise(
+                       std::declval<const Vec<Model::kNx>&>(),
+                       std::declval<const Vec<Model::kNu>&>(), 0.0,
+                       std::declval<const AttitudeModelParams&>(), 0.0, 1,
+                       std::declval<Mat<Model::kNx, Model::kNx>*>(),
+                       std::declval<Mat<Model::kNx, Model::kNu>*>())),
+                   Vec<Model::kNx>> {};
+
+/// The RK4 interval map of Rk4 with its sensitivities A and B, by the model's structured
+/// Discretise when it has one (then only the structural nonzeros of A and B are written:
+/// the caller keeps the other entries zero), else by the generic Rk4 (writes all).
+template <class Model>
+Vec<Model::kNx> Discretise(const Vec<Model::kNx>& x0, const Vec<Model::kNu>& u, double psi_ref,
+                           const AttitudeModelParams& m, double dt, int steps,
+                           Mat<Model::kNx, Model::kNx>* A, Mat<Model::kNx, Model::kNu>* B) {
+  if constexpr (HasStructuredDiscretisation<Model>::value) {
+    return Model::Discretise(x0, u, psi_ref, m, dt, steps, A, B);
+  } else {
+    return Rk4<Model>(x0, u, psi_ref, m, dt, steps, A, B);
+  }
 }
 
 }  // namespace fnmpc::model

@@ -2,6 +2,7 @@
 // Derivatives of every model, integrator and residual against central finite differences.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
 #include "fnmpc/model/follower_model.hpp"
@@ -117,6 +118,56 @@ TEST(Rk4Test, SensitivitiesMatchFiniteDifferences) {
   }
 }
 
+// The structured Discretise must be the generic Rk4's map and derivative, and every entry
+// it leaves unwritten (its structural zeros) must be exactly zero in the generic result.
+template <class Model>
+void CheckStructuredDiscretisation(std::mt19937* rng, int steps) {
+  static_assert(model::HasStructuredDiscretisation<Model>::value,
+                "model::Discretise must pick the structured map of this model");
+  constexpr int nx = Model::kNx;
+  const model::AttitudeModelParams m;
+  for (int trial = 0; trial < 5; ++trial) {
+    const Vec<nx> x = RandomVec<nx>(rng, 0.6);
+    Vec<3> u = RandomVec<3>(rng, 0.35);
+    u[0] += 13.0;
+    const double psi_ref = 0.3 * trial - 0.5;
+    Mat<nx, nx> a_ref;
+    Mat<nx, 3> b_ref;
+    const Vec<nx> x_ref = model::Rk4<Model>(x, u, psi_ref, m, 0.05, steps, &a_ref, &b_ref);
+    Mat<nx, nx> a = Mat<nx, nx>::Constant(kNaN);
+    Mat<nx, 3> b = Mat<nx, 3>::Constant(kNaN);
+    const Vec<nx> xn = Model::Discretise(x, u, psi_ref, m, 0.05, steps, &a, &b);
+    EXPECT_LT((xn - x_ref).cwiseAbs().maxCoeff(), 1e-12);
+    for (int i = 0; i < nx; ++i) {
+      for (int j = 0; j < nx; ++j) {
+        if (std::isnan(a(i, j))) {
+          EXPECT_EQ(a_ref(i, j), 0.0) << "A(" << i << "," << j << ") is not a structural zero";
+        } else {
+          EXPECT_NEAR(a(i, j), a_ref(i, j), 1e-12) << "A(" << i << "," << j << ")";
+        }
+      }
+      for (int j = 0; j < 3; ++j) {
+        if (std::isnan(b(i, j))) {
+          EXPECT_EQ(b_ref(i, j), 0.0) << "B(" << i << "," << j << ") is not a structural zero";
+        } else {
+          EXPECT_NEAR(b(i, j), b_ref(i, j), 1e-12) << "B(" << i << "," << j << ")";
+        }
+      }
+    }
+    // Without sensitivities the same next state.
+    EXPECT_EQ(Model::Discretise(x, u, psi_ref, m, 0.05, steps, nullptr, nullptr), xn);
+  }
+}
+
+TEST(Rk4Test, StructuredDiscretisationEqualsGenericRk4) {
+  std::mt19937 rng(11);
+  for (int steps : {1, 2, 3}) {
+    CheckStructuredDiscretisation<model::QuadrotorModel>(&rng, steps);
+    CheckStructuredDiscretisation<model::FollowerModel<2>>(&rng, steps);
+    CheckStructuredDiscretisation<model::FollowerModel<6>>(&rng, steps);
+  }
+}
+
 TEST(Rk4Test, FourthOrderConvergence) {
   // Given a tilted vehicle, the RK4 error shrinks ~16x when the step halves
   const model::AttitudeModelParams m;
@@ -137,12 +188,14 @@ void CheckResidualJacobians(const Problem& prob, std::mt19937* rng) {
   const Vec<nx> x = RandomVec<nx>(rng, 1.0);
   Vec<3> u = RandomVec<3>(rng, 0.3);
   const Vec<np> p = RandomVec<np>(rng, 2.0);
+  // The problems write only the structural nonzeros of the Jacobians; the finite
+  // differences below check every entry, so an unwritten entry must be a true zero.
   Vec<ny> y;
-  Mat<ny, nx> yx;
-  Mat<ny, 3> yu;
+  Mat<ny, nx> yx = Mat<ny, nx>::Zero();
+  Mat<ny, 3> yu = Mat<ny, 3>::Zero();
   prob.StageResidual(x, u, p, &y, &yx, &yu);
   Vec<nyn> yn;
-  Mat<nyn, nx> ynx;
+  Mat<nyn, nx> ynx = Mat<nyn, nx>::Zero();
   prob.TerminalResidual(x, p, &yn, &ynx);
   const double h = 1e-6;
   for (int i = 0; i < nx; ++i) {
