@@ -11,6 +11,10 @@
 /// terminal cost 0.5 |yN(x_N, p_N) - yrefN|^2_WN; the RtiSolver owns W, references,
 /// parameters and bounds. Each problem states its residual layout; p_k are the stage
 /// parameters (online data), p[0] is always the yaw reference psi_ref [rad].
+///
+/// Residual Jacobians (yx, yu, ynx; nullptr = not wanted) are written only at their
+/// structural nonzeros, the same entries on every call: the caller zeroes them once. The
+/// solver finds the sparsity of the Gauss-Newton blocks from the entries written.
 namespace fnmpc::ocp {
 
 /// Frame in which a follower's desired relative positions d_j are expressed: the MPC
@@ -31,19 +35,14 @@ struct LeaderProblem {
     (*y)[8] = u[0] - params.mass * kGravity;
     y->tail<2>() = u.tail<2>();
     if (yx != nullptr) {
-      yx->setZero();
-      yx->topLeftCorner<8, 8>().setIdentity();
-      yu->setZero();
-      yu->bottomRows<3>().setIdentity();
+      yx->topLeftCorner<8, 8>().diagonal().setOnes();
+      yu->bottomRows<3>().diagonal().setOnes();
     }
   }
   void TerminalResidual(const Vec<kNx>& x, const Vec<kNp>& /*p*/, Vec<kNyN>* y,
                         Mat<kNyN, kNx>* yx) const {
     *y = x.head<8>();
-    if (yx != nullptr) {
-      yx->setZero();
-      yx->leftCols<8>().setIdentity();
-    }
+    if (yx != nullptr) yx->leftCols<8>().diagonal().setOnes();
   }
 };
 
@@ -88,12 +87,15 @@ struct FollowerProblem {
       RelativeRows::Eval(frame, x.template segment<3>(o), psi, &rel, &dr, &dpsi);
       y->template segment<3>(3 * j) = rel;
       y->template segment<3>(3 * kN + 3 * j) =
-          x.template segment<3>(o + model::NeighbourIndex::kVel) - x.template segment<3>(Model::kVel);
+          x.template segment<3>(o + model::NeighbourIndex::kVel) -
+          x.template segment<3>(Model::kVel);
       if (yx != nullptr) {
         yx->template block<3, 3>(3 * j, o) = dr;
         yx->template block<3, 1>(3 * j, Model::kPsi) = dpsi;
-        yx->template block<3, 3>(3 * kN + 3 * j, o + model::NeighbourIndex::kVel).setIdentity();
-        yx->template block<3, 3>(3 * kN + 3 * j, Model::kVel) = -Mat3::Identity();
+        yx->template block<3, 3>(3 * kN + 3 * j, o + model::NeighbourIndex::kVel)
+            .diagonal()
+            .setOnes();
+        yx->template block<3, 3>(3 * kN + 3 * j, Model::kVel).diagonal().setConstant(-1.0);
       }
     }
     (*y)[6 * kN] = x[Model::kPhi];
@@ -106,18 +108,13 @@ struct FollowerProblem {
 
   void StageResidual(const Vec<kNx>& x, const Vec<kNu>& u, const Vec<kNp>& /*p*/, Vec<kNy>* y,
                      Mat<kNy, kNx>* yx, Mat<kNy, kNu>* yu) const {
-    if (yx != nullptr) {
-      yx->setZero();
-      yu->setZero();
-      yu->template bottomRows<3>().setIdentity();
-    }
+    if (yu != nullptr) yu->template bottomRows<3>().diagonal().setOnes();
     Rows<kNy>(x, y, yx);
     (*y)[6 * kN + 2] = u[0] - params.mass * kGravity;
     y->template tail<2>() = u.template tail<2>();
   }
   void TerminalResidual(const Vec<kNx>& x, const Vec<kNp>& /*p*/, Vec<kNyN>* y,
                         Mat<kNyN, kNx>* yx) const {
-    if (yx != nullptr) yx->setZero();
     Rows<kNyN>(x, y, yx);
   }
 };
@@ -154,7 +151,7 @@ struct ReducedFollowerProblem {
       if (yx != nullptr) {
         yx->template block<3, 3>(3 * j, Model::kPos) = -dr;
         yx->template block<3, 1>(3 * j, Model::kPsi) = dpsi;
-        yx->template block<3, 3>(3 * kN + 3 * j, Model::kVel) = -Mat3::Identity();
+        yx->template block<3, 3>(3 * kN + 3 * j, Model::kVel).diagonal().setConstant(-1.0);
       }
     }
     (*y)[6 * kN] = x[Model::kPhi];
@@ -167,18 +164,13 @@ struct ReducedFollowerProblem {
 
   void StageResidual(const Vec<kNx>& x, const Vec<kNu>& u, const Vec<kNp>& p, Vec<kNy>* y,
                      Mat<kNy, kNx>* yx, Mat<kNy, kNu>* yu) const {
-    if (yx != nullptr) {
-      yx->setZero();
-      yu->setZero();
-      yu->template bottomRows<3>().setIdentity();
-    }
+    if (yu != nullptr) yu->template bottomRows<3>().diagonal().setOnes();
     Rows<kNy>(x, p, y, yx);
     (*y)[6 * kN + 2] = u[0] - params.mass * kGravity;
     y->template tail<2>() = u.template tail<2>();
   }
   void TerminalResidual(const Vec<kNx>& x, const Vec<kNp>& p, Vec<kNyN>* y,
                         Mat<kNyN, kNx>* yx) const {
-    if (yx != nullptr) yx->setZero();
     Rows<kNyN>(x, p, y, yx);
   }
 };

@@ -14,6 +14,7 @@
 #include "fnmpc/model/rk4.hpp"
 #include "fnmpc/qp/dense_qp.hpp"
 #include "fnmpc/rti/rti_settings.hpp"
+#include "fnmpc/rti/sparsity.hpp"
 
 namespace fnmpc::rti {
 
@@ -99,7 +100,7 @@ class RtiSolver {
     lambda_.assign(n_ + 1, X::Zero());
     mu_.assign(n_ + 1, X::Zero());
     k_gain_.assign(n_, Mat<kNu, kNx>::Zero());
-    g_.setZero(n_ * kNx, n_ * kNu);
+    g_.assign(static_cast<std::size_t>(n_) * (n_ + 1) / 2, MU::Zero());
     qp_ = qp::DenseQp({nz_, nc_});
     qp_solution_ = qp::QpSolution({nz_, nc_});
     qp_solver_ = std::make_unique<qp::DenseQpSolver>(qp::DenseQpDims{nz_, nc_}, settings_.qp);
@@ -111,6 +112,7 @@ class RtiSolver {
       qp_no_slack_solution_ = qp::QpSolution(hard);
       qp_no_slack_solver_ = std::make_unique<qp::DenseQpSolver>(hard, settings_.qp);
     }
+    DetectStructure();
   }
 
   // ---- Stage data (call before Prepare(); no allocation) ----
@@ -119,6 +121,7 @@ class RtiSolver {
   void SetWeights(const Y& w, const YN& w_terminal) {
     w_ = w;
     w_n_ = w_terminal;
+    BuildCostPatterns();
   }
   /// Reference of stage k = 0..N-1.
   void SetReference(int k, const Y& yref) { yref_[k] = yref; }
@@ -165,30 +168,29 @@ class RtiSolver {
     Stopwatch sw;
     bool finite = true;
     Y y;
-    Mat<kNy, kNx> yx;
-    Mat<kNy, kNu> yu;
+    // The problem writes only the Jacobians' structural nonzeros; the rest stays zero.
+    Mat<kNy, kNx>& yx = *yx_buf_;
+    Mat<kNy, kNu>& yu = *yu_buf_;
     for (int k = 0; k < n_; ++k) {
-      const X next =
-          model::Rk4<Model>(x_[k], u_[k], params_[k][0], problem_.params, settings_.sample_time,
-                            settings_.integrator_steps, &a_[k], &b_[k]);
+      const X next = model::Discretise<Model>(x_[k], u_[k], params_[k][0], problem_.params,
+                                              settings_.sample_time, settings_.integrator_steps,
+                                              &a_[k], &b_[k]);
       d_[k] = next - x_[k + 1];
       problem_.StageResidual(x_[k], u_[k], params_[k], &y, &yx, &yu);
       const Y wr = w_.cwiseProduct(y - yref_[k]);
-      const Mat<kNy, kNx> wyx = w_.asDiagonal() * yx;
-      q_mat_[k].noalias() = yx.transpose() * wyx;
-      s_mat_[k].noalias() = yu.transpose() * wyx;
       r_mat_[k].noalias() = yu.transpose() * w_.asDiagonal() * yu;
-      q_vec_[k].noalias() = yx.transpose() * wr;
       r_vec_[k].noalias() = yu.transpose() * wr;
-      finite =
-          finite && d_[k].allFinite() && a_[k].allFinite() && b_[k].allFinite() && wr.allFinite();
+      GaussNewtonBlocks(yx, &yu, w_, wr, yx_cols_, yu_cols_, q_pattern_, k);
+      finite = finite && a_pattern_.AllFinite(a_[k]) && b_pattern_.AllFinite(b_[k]);
+      finite = finite && d_[k].allFinite() && wr.allFinite();
     }
     {
       YN yn;
-      Mat<kNyN, kNx> ynx;
+      Mat<kNyN, kNx>& ynx = *ynx_buf_;
       problem_.TerminalResidual(x_[n_], params_[n_], &yn, &ynx);
-      q_mat_[n_].noalias() = ynx.transpose() * w_n_.asDiagonal() * ynx;
-      q_vec_[n_].noalias() = ynx.transpose() * w_n_.cwiseProduct(yn - yref_n_);
+      const YN wr = w_n_.cwiseProduct(yn - yref_n_);
+      GaussNewtonBlocks<Mat<kNyN, kNx>, Mat<kNyN, kNu>>(ynx, nullptr, w_n_, wr, ynx_cols_, {},
+                                                        qn_pattern_, n_);
       finite = finite && q_vec_[n_].allFinite();
     }
     Condense();
@@ -211,19 +213,20 @@ class RtiSolver {
       // Free response of the linearised dynamics (no input change), including x0.
       e_[0] = x0 - x_[0];
       for (int k = 0; k < n_; ++k) {
-        e_[k + 1].noalias() = a_[k] * e_[k];
+        MultiplyA(k, e_[k], &e_[k + 1]);
         e_[k + 1] += d_[k];
       }
       // Condensed gradient by a backward sweep.
-      X p = q_mat_[n_] * e_[n_] + q_vec_[n_];
+      X p = q_vec_[n_];
+      AddQ(n_, e_[n_], &p);
       for (int k = n_ - 1; k >= 0; --k) {
         U gk = r_vec_[k];
-        gk.noalias() += s_mat_[k] * e_[k];
-        gk.noalias() += b_[k].transpose() * p;
+        AddS(k, e_[k], &gk);
+        AddBTransposed(k, p, &gk);
         qp_.g.template segment<kNu>(k * kNu) = gk;
         X pk = q_vec_[k];
-        pk.noalias() += q_mat_[k] * e_[k];
-        pk.noalias() += a_[k].transpose() * p;
+        AddQ(k, e_[k], &pk);
+        AddATransposed(k, p, &pk);
         p = pk;
       }
       for (int k = 0; k < n_; ++k) {
@@ -250,8 +253,8 @@ class RtiSolver {
         dx_[0] = e_[0];
         for (int k = 0; k < n_; ++k) {
           du_[k] = qp_solution_.x.template segment<kNu>(k * kNu);
-          dx_[k + 1].noalias() = a_[k] * dx_[k];
-          dx_[k + 1].noalias() += b_[k] * du_[k];
+          MultiplyA(k, dx_[k], &dx_[k + 1]);
+          AddB(k, du_[k], &dx_[k + 1]);
           dx_[k + 1] += d_[k];
         }
         bool finite = true;
@@ -333,13 +336,14 @@ class RtiSolver {
     }
     double kkt = (x_[0] - x0).template lpNorm<Eigen::Infinity>();
     Y y;
-    Mat<kNy, kNx> yx;
-    Mat<kNy, kNu> yu;
-    MX a;
-    MU b;
+    Mat<kNy, kNx>& yx = *yx_buf_;
+    Mat<kNy, kNu>& yu = *yu_buf_;
+    MX a = MX::Zero();  // Discretise writes only the structural nonzeros
+    MU b = MU::Zero();
     for (int k = 0; k < n_; ++k) {
-      const X next = model::Rk4<Model>(x_[k], u_[k], params_[k][0], problem_.params,
-                                       settings_.sample_time, settings_.integrator_steps, &a, &b);
+      const X next =
+          model::Discretise<Model>(x_[k], u_[k], params_[k][0], problem_.params,
+                                   settings_.sample_time, settings_.integrator_steps, &a, &b);
       kkt = std::max(kkt, (next - x_[k + 1]).template lpNorm<Eigen::Infinity>());
       problem_.StageResidual(x_[k], u_[k], params_[k], &y, &yx, &yu);
       const Y wr = w_.cwiseProduct(y - yref_[k]);
@@ -359,7 +363,7 @@ class RtiSolver {
     }
     {
       YN yn;
-      Mat<kNyN, kNx> ynx;
+      Mat<kNyN, kNx>& ynx = *ynx_buf_;
       problem_.TerminalResidual(x_[n_], params_[n_], &yn, &ynx);
       X gx = ynx.transpose() * w_n_.cwiseProduct(yn - yref_n_) - lambda_[n_] + mu_[n_];
       kkt = std::max(kkt, gx.template lpNorm<Eigen::Infinity>());
@@ -447,13 +451,10 @@ class RtiSolver {
 
   // Dense condensing of the Hessian and the constraint rows (independent of x0).
   void Condense() {
-    // G_{k,j} = d x_k / d u_j: block row k-1, block column j < k.
+    // G(k, j) = d x_{k+1} / d u_j for j <= k.
     for (int j = 0; j < n_; ++j) {
-      g_.template block<kNx, kNu>(j * kNx, j * kNu) = b_[j];
-      for (int k = j + 1; k < n_; ++k) {
-        g_.template block<kNx, kNu>(k * kNx, j * kNu).noalias() =
-            a_[k] * g_.template block<kNx, kNu>((k - 1) * kNx, j * kNu);
-      }
+      G(j, j) = b_[j];
+      for (int k = j + 1; k < n_; ++k) MultiplyA(k, G(k - 1, j), &G(k, j));
     }
     if constexpr (kCostToGoCondensing) {
       // Small nx: with the cost-to-go Hessian M_k = Q_k + A_k' M_{k+1} A_k (O(N nx^3)),
@@ -473,29 +474,32 @@ class RtiSolver {
       for (int j = 0; j < n_; ++j) {
         for (int i = j + 1; i < n_; ++i) {
           Mat<kNu, kNu> hij;
-          hij.noalias() = k_gain_[i] * g_.template block<kNx, kNu>((i - 1) * kNx, j * kNu);
+          hij.noalias() = k_gain_[i] * G(i - 1, j);
           qp_.H.template block<kNu, kNu>(i * kNu, j * kNu) = hij;
           qp_.H.template block<kNu, kNu>(j * kNu, i * kNu) = hij.transpose();
         }
       }
     } else {
-      // Large nx: Hessian columns by backward sweeps, O(N^2 nx^2 nu).
-      Mat<kNx, kNu> p, pk;
+      // Large nx: Hessian columns by backward sweeps, O(N^2 nnz nu) with the structural
+      // nonzeros of A_k, B_k, Q_k and S_k.
+      MU p, pk;
       for (int j = 0; j < n_; ++j) {
-        p.noalias() = q_mat_[n_] * g_.template block<kNx, kNu>((n_ - 1) * kNx, j * kNu);
+        p.setZero();
+        AddQ(n_, G(n_ - 1, j), &p);
         for (int k = n_ - 1; k > j; --k) {
-          const auto gkj = g_.template block<kNx, kNu>((k - 1) * kNx, j * kNu);
-          Mat<kNu, kNu> hkj;
-          hkj.noalias() = s_mat_[k] * gkj;
-          hkj.noalias() += b_[k].transpose() * p;
+          const MU& gkj = G(k - 1, j);
+          Mat<kNu, kNu> hkj = Mat<kNu, kNu>::Zero();
+          AddS(k, gkj, &hkj);
+          AddBTransposed(k, p, &hkj);
           qp_.H.template block<kNu, kNu>(k * kNu, j * kNu) = hkj;
           qp_.H.template block<kNu, kNu>(j * kNu, k * kNu) = hkj.transpose();
-          pk.noalias() = q_mat_[k] * gkj;
-          pk.noalias() += a_[k].transpose() * p;
+          pk.setZero();
+          AddQ(k, gkj, &pk);
+          AddATransposed(k, p, &pk);
           p = pk;
         }
         Mat<kNu, kNu> hjj = r_mat_[j];
-        hjj.noalias() += b_[j].transpose() * p;
+        AddBTransposed(j, p, &hjj);
         qp_.H.template block<kNu, kNu>(j * kNu, j * kNu) = 0.5 * (hjj + hjj.transpose());
       }
     }
@@ -507,13 +511,139 @@ class RtiSolver {
     }
     for (int r = 0; r < nc_; ++r) {
       const Row& row = rows_[r];
-      qp_.A.row(r).head(n_ * kNu) = g_.row((row.stage - 1) * kNx + row.index);
+      for (int j = 0; j < row.stage; ++j) {
+        qp_.A.template block<1, kNu>(r, j * kNu) = G(row.stage - 1, j).row(row.index);
+      }
       if (row.kind != 0) qp_.A(r, n_ * kNu + row.stage - 1) = row.kind == 1 ? 1.0 : -1.0;
     }
     if (nsl_ > 0) {
       qp_no_slack_.H = qp_.H.topLeftCorner(n_ * kNu, n_ * kNu);
       qp_no_slack_.A = qp_.A.leftCols(n_ * kNu);
     }
+  }
+
+  // Block G(k, j) = d x_{k+1} / d u_j (j <= k) of the condensed sensitivities.
+  MU& G(int k, int j) { return g_[static_cast<std::size_t>(k) * (k + 1) / 2 + j]; }
+
+  // Products with the stage matrices over their structural nonzeros (the neighbour blocks
+  // of the full follower models are mostly zero; for L, A_k has 30 of 81 entries).
+  template <class In, class Out>
+  void MultiplyA(int k, const In& in, Out* out) const {
+    a_pattern_.Multiply(a_[k], in, out);
+  }
+  template <class In, class Out>
+  void AddATransposed(int k, const In& in, Out* out) const {
+    a_pattern_.AddTransposedProduct(a_[k], in, out);
+  }
+  template <class In, class Out>
+  void AddB(int k, const In& in, Out* out) const {
+    b_pattern_.AddProduct(b_[k], in, out);
+  }
+  template <class In, class Out>
+  void AddBTransposed(int k, const In& in, Out* out) const {
+    b_pattern_.AddTransposedProduct(b_[k], in, out);
+  }
+  // k = N is the terminal cost.
+  template <class In, class Out>
+  void AddQ(int k, const In& in, Out* out) const {
+    (k == n_ ? qn_pattern_ : q_pattern_).AddProduct(q_mat_[k], in, out);
+  }
+  template <class In, class Out>
+  void AddS(int k, const In& in, Out* out) const {
+    s_pattern_.AddProduct(s_mat_[k], in, out);
+  }
+
+  // Gauss-Newton blocks of node k from the residual Jacobians, over the nonzero columns
+  // of each residual row: Q_k = Jx' W Jx, S_k = Ju' W Jx, q_k = Jx' W r (the entries of
+  // q_pattern outside the rows' products are never written and stay zero).
+  template <class Jx, class Ju, class Wv, class Rv>
+  void GaussNewtonBlocks(const Jx& jx, const Ju* ju, const Wv& w, const Rv& wr,
+                         const std::vector<std::vector<int>>& x_cols,
+                         const std::vector<std::vector<int>>& u_cols,
+                         const SparsityPattern& q_pattern, int k) {
+    for (const auto& e : q_pattern.entries()) q_mat_[k](e.row, e.col) = 0.0;
+    q_vec_[k].setZero();
+    if (ju != nullptr) {
+      for (const auto& e : s_pattern_.entries()) s_mat_[k](e.row, e.col) = 0.0;
+    }
+    for (int r = 0; r < static_cast<int>(x_cols.size()); ++r) {
+      if (w[r] == 0.0) continue;
+      for (int a : x_cols[r]) {
+        const double ya = jx(r, a);
+        q_vec_[k][a] += ya * wr[r];
+        const double wya = w[r] * ya;
+        for (int b : x_cols[r]) q_mat_[k](a, b) += wya * jx(r, b);
+        if (ju != nullptr) {
+          for (int i : u_cols[r]) s_mat_[k](i, a) += (*ju)(r, i) * wya;
+        }
+      }
+    }
+  }
+
+  // Structural nonzeros: the entries that model::Discretise and the problem's residual
+  // functions write (both write the same entries on every call; NaN marks the others).
+  void DetectStructure() {
+    MX a = MX::Constant(kNaN);
+    MU b = MU::Constant(kNaN);
+    model::Discretise<Model>(X::Zero(), U::Zero(), 0.0, problem_.params, settings_.sample_time,
+                             settings_.integrator_steps, &a, &b);
+    a_pattern_.SetFromWritten(a);
+    b_pattern_.SetFromWritten(b);
+    Y y;
+    YN yn;
+    yx_buf_->setConstant(kNaN);
+    yu_buf_->setConstant(kNaN);
+    ynx_buf_->setConstant(kNaN);
+    problem_.StageResidual(X::Zero(), U::Zero(), P::Zero(), &y, yx_buf_.get(), yu_buf_.get());
+    problem_.TerminalResidual(X::Zero(), P::Zero(), &yn, ynx_buf_.get());
+    const Eigen::Array<bool, kNy, kNx> yx_mask = yx_buf_->array() == yx_buf_->array();
+    const Eigen::Array<bool, kNy, kNu> yu_mask = yu_buf_->array() == yu_buf_->array();
+    const Eigen::Array<bool, kNyN, kNx> ynx_mask = ynx_buf_->array() == ynx_buf_->array();
+    yx_buf_->setZero();
+    yu_buf_->setZero();
+    ynx_buf_->setZero();
+    const auto columns = [](const auto& mask, std::vector<std::vector<int>>* cols) {
+      cols->assign(mask.rows(), {});
+      for (int r = 0; r < mask.rows(); ++r) {
+        for (int c = 0; c < mask.cols(); ++c) {
+          if (mask(r, c)) (*cols)[r].push_back(c);
+        }
+      }
+    };
+    columns(yx_mask, &yx_cols_);
+    columns(yu_mask, &yu_cols_);
+    columns(ynx_mask, &ynx_cols_);
+    q_pattern_.Reserve(kNx, kNx);
+    qn_pattern_.Reserve(kNx, kNx);
+    s_pattern_.Reserve(kNu, kNx);
+    BuildCostPatterns();
+  }
+
+  // Nonzeros of Q_k, Q_N and S_k for the current weights (rows with zero weight drop out).
+  void BuildCostPatterns() {
+    if (yx_cols_.empty()) return;  // before DetectStructure
+    Eigen::Array<bool, kNx, kNx> q = Eigen::Array<bool, kNx, kNx>::Constant(false);
+    Eigen::Array<bool, kNx, kNx> qn = Eigen::Array<bool, kNx, kNx>::Constant(false);
+    Eigen::Array<bool, kNu, kNx> sm = Eigen::Array<bool, kNu, kNx>::Constant(false);
+    for (int r = 0; r < kNy; ++r) {
+      if (w_[r] == 0.0) continue;
+      for (int a : yx_cols_[r]) {
+        for (int b : yx_cols_[r]) q(a, b) = true;
+        for (int i : yu_cols_[r]) sm(i, a) = true;
+      }
+    }
+    for (int r = 0; r < kNyN; ++r) {
+      if (w_n_[r] == 0.0) continue;
+      for (int a : ynx_cols_[r]) {
+        for (int b : ynx_cols_[r]) qn(a, b) = true;
+      }
+    }
+    q_pattern_.SetFromMask(q);
+    qn_pattern_.SetFromMask(qn);
+    s_pattern_.SetFromMask(sm);
+    // Entries outside the new patterns must read as zero in the dense copies.
+    for (auto& m : q_mat_) m.setZero();
+    for (auto& m : s_mat_) m.setZero();
   }
 
   Problem problem_;
@@ -541,7 +671,13 @@ class RtiSolver {
   std::vector<X> e_, dx_, lambda_, mu_;
   std::vector<U> du_;
   std::vector<Mat<kNu, kNx>> k_gain_;
-  MatX g_;
+  std::vector<MU> g_;
+  SparsityPattern a_pattern_, b_pattern_, q_pattern_, qn_pattern_, s_pattern_;
+  std::vector<std::vector<int>> yx_cols_, yu_cols_, ynx_cols_;
+  // Residual Jacobian buffers (on the heap: kNy x kNx is large for F6), zero off-pattern.
+  std::unique_ptr<Mat<kNy, kNx>> yx_buf_ = std::make_unique<Mat<kNy, kNx>>();
+  std::unique_ptr<Mat<kNy, kNu>> yu_buf_ = std::make_unique<Mat<kNy, kNu>>();
+  std::unique_ptr<Mat<kNyN, kNx>> ynx_buf_ = std::make_unique<Mat<kNyN, kNx>>();
   qp::DenseQp qp_;
   qp::QpSolution qp_solution_;
   std::unique_ptr<qp::DenseQpSolver> qp_solver_;

@@ -1,0 +1,71 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include <Eigen/Core>
+#include <cmath>
+#include <vector>
+
+/// Structural nonzeros of small matrices that are stored densely. The follower models'
+/// transition matrices, cost Hessians and input matrices are mostly zero (a neighbour's
+/// block is identity plus a few entries); products over the nonzeros only are what make
+/// condensing O(nnz) instead of O(nx^2) per block.
+namespace fnmpc::rti {
+
+class SparsityPattern {
+ public:
+  struct Entry {
+    int row, col;
+  };
+  /// Room for every entry of a rows x cols matrix, so that Rebuild never allocates.
+  void Reserve(int rows, int cols) { entries_.reserve(static_cast<std::size_t>(rows) * cols); }
+  /// Entries of m that are not NaN (NaN marks "never written", see model::Discretise).
+  template <class M>
+  void SetFromWritten(const M& m) {
+    entries_.clear();
+    for (int c = 0; c < m.cols(); ++c) {
+      for (int r = 0; r < m.rows(); ++r) {
+        if (!std::isnan(m(r, c))) entries_.push_back({r, c});
+      }
+    }
+  }
+  /// Entries where the boolean mask is set.
+  template <class M>
+  void SetFromMask(const M& mask) {
+    entries_.clear();
+    for (int c = 0; c < mask.cols(); ++c) {
+      for (int r = 0; r < mask.rows(); ++r) {
+        if (mask(r, c)) entries_.push_back({r, c});
+      }
+    }
+  }
+  [[nodiscard]] const std::vector<Entry>& entries() const { return entries_; }
+
+  /// out = m * in (out must not alias in).
+  template <class M, class In, class Out>
+  void Multiply(const M& m, const In& in, Out* out) const {
+    out->setZero();
+    for (const Entry& e : entries_) out->row(e.row) += m(e.row, e.col) * in.row(e.col);
+  }
+  /// out += m' * in.
+  template <class M, class In, class Out>
+  void AddTransposedProduct(const M& m, const In& in, Out* out) const {
+    for (const Entry& e : entries_) out->row(e.col) += m(e.row, e.col) * in.row(e.row);
+  }
+  /// out += m * in.
+  template <class M, class In, class Out>
+  void AddProduct(const M& m, const In& in, Out* out) const {
+    for (const Entry& e : entries_) out->row(e.row) += m(e.row, e.col) * in.row(e.col);
+  }
+  /// True when every structural entry of m is finite.
+  template <class M>
+  [[nodiscard]] bool AllFinite(const M& m) const {
+    double sum = 0.0;
+    for (const Entry& e : entries_) sum += m(e.row, e.col) * 0.0;
+    return sum == 0.0;  // NaN or Inf times zero is NaN
+  }
+
+ private:
+  std::vector<Entry> entries_;
+};
+
+}  // namespace fnmpc::rti
