@@ -1,7 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "fnmpc/qp/dense_qp.hpp"
 
-#include <Eigen/Cholesky>
 #include <Eigen/Householder>
 #include <Eigen/Jacobi>
 #include <algorithm>
@@ -149,7 +148,12 @@ struct DenseQpSolver::Workspace {
   QpSettings settings;
   const DenseQp* problem = nullptr;  // QP of the current solve
 
-  Eigen::LLT<Eigen::MatrixXd> llt;
+  // Cholesky factor of H (lower triangle; the upper one is not referenced).
+  Eigen::MatrixXd chol;
+  // H = L L' by columns (left-looking); false when a pivot is not positive. Unblocked:
+  // for the few dozen variables of a condensed MPC QP, Eigen's blocked LLT spends most of
+  // its time in GEMM set-up.
+  bool Factorize(const Eigen::MatrixXd& h);
   Eigen::MatrixXd Q;  // nv x nv orthogonal, J = L^-T Q
   Eigen::MatrixXd R;  // nv x nv, upper triangular block q x q is used
   Eigen::VectorXd x, d, z, r, u, w, v, lt;
@@ -179,7 +183,7 @@ DenseQpSolver::Workspace::Workspace(const DenseQpDims& dims, const QpSettings& s
     : nv(dims.nv),
       nc(dims.nc),
       settings(s),
-      llt(dims.nv),
+      chol(dims.nv, dims.nv),
       Q(dims.nv, dims.nv),
       R(dims.nv, dims.nv),
       x(dims.nv),
@@ -208,8 +212,7 @@ DenseQpSolver::Workspace::Workspace(const DenseQpDims& dims, const QpSettings& s
   v.setZero();
   lt.setZero();
   ax.setZero();
-  // Run one factorisation so that the LLT object owns its storage.
-  llt.compute(Eigen::MatrixXd::Identity(nv, nv));
+  chol.setIdentity();
 }
 
 QpStatus DenseQpSolver::Workspace::Validate(const DenseQp& qp) const {
@@ -240,6 +243,21 @@ QpStatus DenseQpSolver::Workspace::Validate(const DenseQp& qp) const {
   return QpStatus::kOptimal;
 }
 
+bool DenseQpSolver::Workspace::Factorize(const Eigen::MatrixXd& h) {
+  for (int j = 0; j < nv; ++j) {
+    const int m = nv - j;
+    auto col = chol.col(j).tail(m);
+    col = h.col(j).tail(m);
+    if (j > 0) col.noalias() -= chol.bottomLeftCorner(m, j) * chol.row(j).head(j).transpose();
+    const double pivot = col[0];
+    if (!(pivot > 0.0)) return false;
+    const double root = std::sqrt(pivot);
+    col[0] = root;
+    col.tail(m - 1) /= root;
+  }
+  return true;
+}
+
 void DenseQpSolver::Workspace::InitQ() {
   Q.setIdentity();
   q_ready = true;
@@ -247,7 +265,7 @@ void DenseQpSolver::Workspace::InitQ() {
 
 void DenseQpSolver::Workspace::ComputeStep(int id, int sign, double* zn, double* dn2, bool steps) {
   // lt = L^-1 n (for n = +-e_j only rows j.. are nonzero), d = Q' lt.
-  const auto& l = llt.matrixLLT();
+  const auto& l = chol;
   if (id < nv) {
     lt.head(id).setZero();
     lt.tail(nv - id).setZero();
@@ -471,7 +489,7 @@ void DenseQpSolver::Workspace::Refine(bool clamp) {
   // x = J1 R^-T b_A - J2 J2' g and u = R^-1 (R^-T b_A + J1' g).
   for (int k = 0; k < q; ++k) v[k] = Rhs(active_id[k], active_sign[k]);
   R.topLeftCorner(q, q).transpose().triangularView<Eigen::Lower>().solveInPlace(v.head(q));
-  const auto& l = llt.matrixLLT();
+  const auto& l = chol;
   lt = problem->g;
   l.triangularView<Eigen::Lower>().solveInPlace(lt);
   w.noalias() = Q.transpose() * lt;
@@ -570,13 +588,13 @@ QpStatus DenseQpSolver::Workspace::Run(const DenseQp& qp, QpSolution* sol) {
   if (const QpStatus s = Validate(qp); s != QpStatus::kOptimal) return s;
 
   // Unconstrained minimiser.
-  llt.compute(qp.H);
-  if (llt.info() != Eigen::Success) return QpStatus::kNotConvex;
+  if (!Factorize(qp.H)) return QpStatus::kNotConvex;
   const double max_h = qp.H.diagonal().cwiseAbs().maxCoeff();
-  const double min_pivot = llt.matrixLLT().diagonal().cwiseAbs2().minCoeff();
+  const double min_pivot = chol.diagonal().cwiseAbs2().minCoeff();
   if (!(min_pivot > kPivotTol * max_h)) return QpStatus::kNotConvex;
   x = -qp.g;
-  llt.solveInPlace(x);
+  chol.triangularView<Eigen::Lower>().solveInPlace(x);
+  chol.transpose().triangularView<Eigen::Upper>().solveInPlace(x);
   u.setZero();
 
   const auto fail = [](AddResult a) {
