@@ -80,7 +80,8 @@ DenseQp::DenseQp(const DenseQpDims& dims)
       lb(Eigen::VectorXd::Constant(dims.nv, -kInfinity)),
       ub(Eigen::VectorXd::Constant(dims.nv, kInfinity)),
       lbA(Eigen::VectorXd::Constant(dims.nc, -kInfinity)),
-      ubA(Eigen::VectorXd::Constant(dims.nc, kInfinity)) {}
+      ubA(Eigen::VectorXd::Constant(dims.nc, kInfinity)),
+      L(Eigen::MatrixXd::Identity(dims.nv, dims.nv)) {}
 
 QpSolution::QpSolution(const DenseQpDims& dims)
     : x(Eigen::VectorXd::Zero(dims.nv)),
@@ -148,8 +149,10 @@ struct DenseQpSolver::Workspace {
   QpSettings settings;
   const DenseQp* problem = nullptr;  // QP of the current solve
 
-  // Cholesky factor of H (lower triangle; the upper one is not referenced).
+  // Cholesky factor of H (lower triangle; the upper one is not referenced): Factorize's
+  // result or the caller's DenseQp::L.
   Eigen::MatrixXd chol;
+  const Eigen::MatrixXd* factor = &chol;
   // H = L L' by columns (left-looking); false when a pivot is not positive. Unblocked:
   // for the few dozen variables of a condensed MPC QP, Eigen's blocked LLT spends most of
   // its time in GEMM set-up.
@@ -216,7 +219,7 @@ DenseQpSolver::Workspace::Workspace(const DenseQpDims& dims, const QpSettings& s
 }
 
 QpStatus DenseQpSolver::Workspace::Validate(const DenseQp& qp) const {
-  if (qp.H.rows() != nv || qp.H.cols() != nv || qp.g.size() != nv || qp.A.rows() != nc ||
+  if ((!qp.h_factor_given && (qp.H.rows() != nv || qp.H.cols() != nv)) || qp.g.size() != nv || qp.A.rows() != nc ||
       (nc > 0 && qp.A.cols() != nv) || qp.lb.size() != nv || qp.ub.size() != nv ||
       qp.lbA.size() != nc || qp.ubA.size() != nc) {
     return QpStatus::kInvalidInput;
@@ -224,9 +227,15 @@ QpStatus DenseQpSolver::Workspace::Validate(const DenseQp& qp) const {
   // Fast path: a vectorised sum is finite iff no entry is NaN/Inf (barring overflow,
   // in which case the exact element-wise check decides).
   const auto finite = [](const auto& m) { return std::isfinite(m.sum()) || m.allFinite(); };
-  if (!finite(qp.H) || !finite(qp.g) || (nc > 0 && !finite(qp.A))) {
+  if (qp.h_factor_given) {
+    if (qp.L.rows() != nv || qp.L.cols() != nv) return QpStatus::kInvalidInput;
+    for (int j = 0; j < nv; ++j) {
+      if (!finite(qp.L.col(j).tail(nv - j))) return QpStatus::kNumericalError;
+    }
+  } else if (!finite(qp.H)) {
     return QpStatus::kNumericalError;
   }
+  if (!finite(qp.g) || (nc > 0 && !finite(qp.A))) return QpStatus::kNumericalError;
   const auto check_sides = [](double lo, double hi) {
     if (std::isnan(lo) || std::isnan(hi)) return QpStatus::kNumericalError;
     if (lo > hi || lo == kInfinity || hi == -kInfinity) return QpStatus::kInvalidInput;
@@ -265,7 +274,7 @@ void DenseQpSolver::Workspace::InitQ() {
 
 void DenseQpSolver::Workspace::ComputeStep(int id, int sign, double* zn, double* dn2, bool steps) {
   // lt = L^-1 n (for n = +-e_j only rows j.. are nonzero), d = Q' lt.
-  const auto& l = chol;
+  const auto& l = *factor;
   if (id < nv) {
     lt.head(id).setZero();
     lt.tail(nv - id).setZero();
@@ -489,7 +498,7 @@ void DenseQpSolver::Workspace::Refine(bool clamp) {
   // x = J1 R^-T b_A - J2 J2' g and u = R^-1 (R^-T b_A + J1' g).
   for (int k = 0; k < q; ++k) v[k] = Rhs(active_id[k], active_sign[k]);
   R.topLeftCorner(q, q).transpose().triangularView<Eigen::Lower>().solveInPlace(v.head(q));
-  const auto& l = chol;
+  const auto& l = *factor;
   lt = problem->g;
   l.triangularView<Eigen::Lower>().solveInPlace(lt);
   w.noalias() = Q.transpose() * lt;
@@ -569,8 +578,9 @@ void DenseQpSolver::Workspace::WriteSolution(QpSolution* sol) {
     }
   }
   sol->x = x;
-  w.noalias() = problem->H * x;
-  sol->objective = 0.5 * x.dot(w) + problem->g.dot(x);
+  // 0.5 x' H x = 0.5 |L' x|^2.
+  w.noalias() = factor->transpose().triangularView<Eigen::Upper>() * x;
+  sol->objective = 0.5 * w.squaredNorm() + problem->g.dot(x);
   sol->num_active = q;
 }
 
@@ -588,13 +598,23 @@ QpStatus DenseQpSolver::Workspace::Run(const DenseQp& qp, QpSolution* sol) {
   if (const QpStatus s = Validate(qp); s != QpStatus::kOptimal) return s;
 
   // Unconstrained minimiser.
-  if (!Factorize(qp.H)) return QpStatus::kNotConvex;
-  const double max_h = qp.H.diagonal().cwiseAbs().maxCoeff();
-  const double min_pivot = chol.diagonal().cwiseAbs2().minCoeff();
+  double max_h = 0.0;  // max_i H_ii
+  if (qp.h_factor_given) {
+    factor = &qp.L;
+    if (!(qp.L.diagonal().minCoeff() > 0.0)) return QpStatus::kNotConvex;
+    w.setZero();  // H_ii = sum_j L_ij^2, accumulated by columns
+    for (int j = 0; j < nv; ++j) w.tail(nv - j) += qp.L.col(j).tail(nv - j).cwiseAbs2();
+    max_h = w.maxCoeff();
+  } else {
+    factor = &chol;
+    if (!Factorize(qp.H)) return QpStatus::kNotConvex;
+    max_h = qp.H.diagonal().cwiseAbs().maxCoeff();
+  }
+  const double min_pivot = factor->diagonal().cwiseAbs2().minCoeff();
   if (!(min_pivot > kPivotTol * max_h)) return QpStatus::kNotConvex;
   x = -qp.g;
-  chol.triangularView<Eigen::Lower>().solveInPlace(x);
-  chol.transpose().triangularView<Eigen::Upper>().solveInPlace(x);
+  factor->triangularView<Eigen::Lower>().solveInPlace(x);
+  factor->transpose().triangularView<Eigen::Upper>().solveInPlace(x);
   u.setZero();
 
   const auto fail = [](AddResult a) {
@@ -728,7 +748,13 @@ KktResiduals ComputeKktResiduals(const DenseQp& qp, const QpSolution& sol) {
     res.stationarity = res.primal = res.dual = res.complementarity = kInfinity;
     return res;
   }
-  Eigen::VectorXd grad = qp.H * sol.x + qp.g + sol.y_bounds;
+  Eigen::VectorXd grad = qp.g + sol.y_bounds;
+  if (qp.h_factor_given) {
+    const Eigen::VectorXd ltx = qp.L.transpose().triangularView<Eigen::Upper>() * sol.x;
+    grad.noalias() += qp.L.triangularView<Eigen::Lower>() * ltx;
+  } else {
+    grad.noalias() += qp.H * sol.x;
+  }
   if (nc > 0) grad.noalias() += qp.A.transpose() * sol.y_constraints;
   res.stationarity = grad.lpNorm<Eigen::Infinity>();
   const auto side = [&res](double value, double lo, double hi, double y) {

@@ -19,11 +19,19 @@ struct DenseQpDims {
 ///              lbA <= A x <= ubA     (general constraints; +-infinity = absent)
 /// H (nv x nv) symmetric positive definite; A is nc x nv. lb == ub (or lbA == ubA) is
 /// an equality. H must be stored full (both triangles).
+///
+/// Instead of H a caller may give a Cholesky factor of it (h_factor_given = true): the
+/// lower triangle of L with H = L L' (the upper triangle and H are then not read). A
+/// structure-exploiting caller can form it for less than the factorisation costs (the
+/// Riccati condensing of fnmpc/rti does). A diagonal entry of L that is not positive
+/// means H is not positive definite (status kNotConvex).
 struct DenseQp {
   Eigen::MatrixXd H;
   Eigen::VectorXd g;
   Eigen::MatrixXd A;
   Eigen::VectorXd lb, ub, lbA, ubA;
+  Eigen::MatrixXd L;            ///< nv x nv, read only when h_factor_given
+  bool h_factor_given = false;  ///< use L instead of H
 
   explicit DenseQp(const DenseQpDims& dims = {});
   [[nodiscard]] DenseQpDims dims() const {

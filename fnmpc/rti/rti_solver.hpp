@@ -1,12 +1,15 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
+#include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "fnmpc/core/stopwatch.hpp"
@@ -17,6 +20,23 @@
 #include "fnmpc/rti/sparsity.hpp"
 
 namespace fnmpc::rti {
+
+namespace detail {
+/// Models with structured products with their transition matrix (Model::MultiplyTransition
+/// and MultiplyTransitionRight, see QuadrotorModel). A detection trait: the ROS nodes
+/// include this header from C++17 units.
+template <class Model, class = void>
+struct HasStructuredTransition : std::false_type {};
+template <class Model>
+struct HasStructuredTransition<
+    Model, std::void_t<decltype(Model::MultiplyTransition(
+                           std::declval<const Mat<Model::kNx, Model::kNx>&>(),
+                           std::declval<const Vec<Model::kNx>&>(), std::declval<Vec<Model::kNx>*>())),
+                       decltype(Model::MultiplyTransitionRight(
+                           std::declval<const Mat<1, Model::kNx>&>(),
+                           std::declval<const Mat<Model::kNx, Model::kNx>&>(),
+                           std::declval<Mat<1, Model::kNx>*>()))>> : std::true_type {};
+}  // namespace detail
 
 /// Real-time-iteration SQP solver for a nonlinear least-squares OCP `Problem`
 /// (see fnmpc/ocp/problems.hpp):
@@ -106,11 +126,29 @@ class RtiSolver {
     qp_solver_ = std::make_unique<qp::DenseQpSolver>(qp::DenseQpDims{nz_, nc_}, settings_.qp);
     qp_.A.setZero();
     qp_.H.setZero();
+    qp_.L.setZero();
+    qp_.h_factor_given = kRiccatiCondensing;
     if (nsl_ > 0) {
-      const qp::DenseQpDims hard{n_ * kNu, nc_};
+      const int nv = n_ * kNu;
+      const qp::DenseQpDims hard{nv, nc_};
       qp_no_slack_ = qp::DenseQp(hard);
       qp_no_slack_solution_ = qp::QpSolution(hard);
       qp_no_slack_solver_ = std::make_unique<qp::DenseQpSolver>(hard, settings_.qp);
+      qp_no_slack_.A.setZero();
+      qp_no_slack_.H.setZero();
+      qp_no_slack_.L.setZero();
+      qp_no_slack_.h_factor_given = kRiccatiCondensing;
+      // The slack part of the soft QP never changes.
+      for (int s = 0; s < nsl_; ++s) {
+        qp_.H(nv + s, nv + s) = settings_.soft_quadratic_weight;
+        qp_.L(nv + s, nv + s) = std::sqrt(settings_.soft_quadratic_weight);
+        qp_.g[nv + s] = settings_.soft_linear_weight;
+        qp_.lb[nv + s] = 0.0;
+        qp_.ub[nv + s] = kInf;
+      }
+      for (int r = 0; r < nc_; ++r) {
+        if (rows_[r].kind != 0) qp_.A(r, nv + rows_[r].stage - 1) = rows_[r].kind == 1 ? 1.0 : -1.0;
+      }
     }
     DetectStructure();
   }
@@ -210,6 +248,7 @@ class RtiSolver {
     } else if (!prepared_) {
       status = RtiStatus::kNanDetected;
     } else {
+      qp::DenseQp& qp = HardQp();
       // Free response of the linearised dynamics (no input change), including x0.
       e_[0] = x0 - x_[0];
       for (int k = 0; k < n_; ++k) {
@@ -223,27 +262,31 @@ class RtiSolver {
         U gk = r_vec_[k];
         AddS(k, e_[k], &gk);
         AddBTransposed(k, p, &gk);
-        qp_.g.template segment<kNu>(k * kNu) = gk;
+        qp.g.template segment<kNu>(UPos(k)) = gk;
         X pk = q_vec_[k];
         AddQ(k, e_[k], &pk);
         AddATransposed(k, p, &pk);
         p = pk;
       }
       for (int k = 0; k < n_; ++k) {
-        qp_.lb.template segment<kNu>(k * kNu) = lbu_[k] - u_[k];
-        qp_.ub.template segment<kNu>(k * kNu) = ubu_[k] - u_[k];
+        qp.lb.template segment<kNu>(UPos(k)) = lbu_[k] - u_[k];
+        qp.ub.template segment<kNu>(UPos(k)) = ubu_[k] - u_[k];
       }
       for (int r = 0; r < nc_; ++r) {
         const Row& row = rows_[r];
         const double base = x_[row.stage][row.index] + e_[row.stage][row.index];
         const double lb = lbx_[row.stage][row.index] - base;
         const double ub = ubx_[row.stage][row.index] - base;
-        qp_.lbA[r] = row.kind == 2 ? -kInf : lb;
-        qp_.ubA[r] = row.kind == 1 ? kInf : ub;
+        qp.lbA[r] = row.kind == 2 ? -kInf : lb;
+        qp.ubA[r] = row.kind == 1 ? kInf : ub;
       }
-      const qp::QpStatus qs = nsl_ > 0 && SolveWithoutSlacks()
-                                  ? qp::QpStatus::kOptimal
-                                  : qp_solver_->Solve(qp_, &qp_solution_);
+      qp::QpStatus qs = qp::QpStatus::kOptimal;
+      if (nsl_ == 0) {
+        qs = qp_solver_->Solve(qp_, &qp_solution_);
+      } else if (!SolveWithoutSlacks()) {
+        FillSoftQp();
+        qs = qp_solver_->Solve(qp_, &qp_solution_);
+      }
       stats_.qp_status = qs;
       stats_.qp_iterations += qp_solution_.iterations;
       if (qs != qp::QpStatus::kOptimal) {
@@ -252,7 +295,7 @@ class RtiSolver {
         // Expand: dx_{k+1} = A dx_k + B du_k + d_k.
         dx_[0] = e_[0];
         for (int k = 0; k < n_; ++k) {
-          du_[k] = qp_solution_.x.template segment<kNu>(k * kNu);
+          du_[k] = qp_solution_.x.template segment<kNu>(UPos(k));
           MultiplyA(k, dx_[k], &dx_[k + 1]);
           AddB(k, du_[k], &dx_[k + 1]);
           dx_[k + 1] += d_[k];
@@ -348,7 +391,7 @@ class RtiSolver {
       problem_.StageResidual(x_[k], u_[k], params_[k], &y, &yx, &yu);
       const Y wr = w_.cwiseProduct(y - yref_[k]);
       U gu = yu.transpose() * wr + b.transpose() * lambda_[k + 1] +
-             qp_solution_.y_bounds.template segment<kNu>(k * kNu);
+             qp_solution_.y_bounds.template segment<kNu>(UPos(k));
       kkt = std::max(kkt, gu.template lpNorm<Eigen::Infinity>());
       if (k >= 1) {
         X gx = yx.transpose() * wr - lambda_[k] + a.transpose() * lambda_[k + 1] + mu_[k];
@@ -356,7 +399,7 @@ class RtiSolver {
       }
       for (int i = 0; i < kNu; ++i) {
         kkt = std::max({kkt, lbu_[k][i] - u_[k][i], u_[k][i] - ubu_[k][i]});
-        const double yb = qp_solution_.y_bounds[k * kNu + i];
+        const double yb = qp_solution_.y_bounds[UPos(k) + i];
         const double gap = yb > 0 ? ubu_[k][i] - u_[k][i] : u_[k][i] - lbu_[k][i];
         if (yb != 0.0 && std::isfinite(gap)) kkt = std::max(kkt, std::abs(yb * gap));
       }
@@ -401,8 +444,18 @@ class RtiSolver {
   [[nodiscard]] const StateBoundLayout& layout() const { return layout_; }
 
  private:
-  // Which Hessian condensing is cheaper: the cost-to-go form wins for small nx.
-  static constexpr bool kCostToGoCondensing = kNx <= 16;
+  // Small nx: Riccati condensing straight into the Cholesky factor of the Hessian (the
+  // QP then skips its factorisation). Large nx: the Hessian by sparse backward sweeps
+  // (a dense nx x nx Riccati matrix would fill the follower models' sparse blocks).
+  static constexpr bool kRiccatiCondensing = kNx <= 16;
+
+  // Position of u_k in the QP variables: last stage first, so that the Riccati recursion
+  // (which eliminates u_{N-1} first) gives a lower-triangular factor. Slacks come after.
+  [[nodiscard]] int UPos(int k) const { return (n_ - 1 - k) * kNu; }
+
+  // The QP without slack variables: the one Condense and Feedback write (with soft bounds
+  // it is tried first, see SolveWithoutSlacks), else the only QP.
+  qp::DenseQp& HardQp() { return nsl_ > 0 ? qp_no_slack_ : qp_; }
 
   struct Row {
     int stage;  // node k = 1..N
@@ -418,11 +471,6 @@ class RtiSolver {
   // fails.
   bool SolveWithoutSlacks() {
     const int nv = n_ * kNu;
-    qp_no_slack_.g = qp_.g.head(nv);
-    qp_no_slack_.lb = qp_.lb.head(nv);
-    qp_no_slack_.ub = qp_.ub.head(nv);
-    qp_no_slack_.lbA = qp_.lbA;
-    qp_no_slack_.ubA = qp_.ubA;
     if (qp_no_slack_solver_->Solve(qp_no_slack_, &qp_no_slack_solution_) !=
         qp::QpStatus::kOptimal) {
       return false;
@@ -449,34 +497,74 @@ class RtiSolver {
     return true;
   }
 
+  // The soft QP from the hard one (its slack part is set in the constructor).
+  void FillSoftQp() {
+    const int nv = n_ * kNu;
+    const qp::DenseQp& hard = qp_no_slack_;
+    qp_.g.head(nv) = hard.g;
+    qp_.lb.head(nv) = hard.lb;
+    qp_.ub.head(nv) = hard.ub;
+    qp_.lbA = hard.lbA;
+    qp_.ubA = hard.ubA;
+    if constexpr (kRiccatiCondensing) {
+      qp_.L.topLeftCorner(nv, nv) = hard.L;
+    } else {
+      qp_.H.topLeftCorner(nv, nv) = hard.H;
+    }
+    qp_.A.leftCols(nv) = hard.A;
+  }
+
   // Dense condensing of the Hessian and the constraint rows (independent of x0).
   void Condense() {
+    qp::DenseQp& qp = HardQp();
     // G(k, j) = d x_{k+1} / d u_j for j <= k.
     for (int j = 0; j < n_; ++j) {
       G(j, j) = b_[j];
       for (int k = j + 1; k < n_; ++k) MultiplyA(k, G(k - 1, j), &G(k, j));
     }
-    if constexpr (kCostToGoCondensing) {
-      // Small nx: with the cost-to-go Hessian M_k = Q_k + A_k' M_{k+1} A_k (O(N nx^3)),
-      // H_ij = (S_i + B_i' M_{i+1} A_i) G_ij for i > j (O(N^2 nx nu^2)).
-      MX m = q_mat_[n_];
+    if constexpr (kRiccatiCondensing) {
+      // Riccati recursion P_N = Q_N, Rbar_k = R_k + B_k' P_k+1 B_k = L_k L_k',
+      // Kt_k = L_k^-1 (S_k + B_k' P_k+1 A_k), P_k = Q_k + A_k' P_k+1 A_k - Kt_k' Kt_k.
+      // With the inputs ordered last stage first, the Cholesky factor of the condensed
+      // Hessian has the diagonal blocks L_k and below them (Kt_k G(k-1, j))' for j < k
+      // (eliminating u_N-1 first is one backward Riccati step): O(N nx^3 + N^2 nx nu^2),
+      // as much as forming the Hessian, and the QP needs no factorisation.
+      Eigen::MatrixXd& l = qp.L;
+      MX p = q_mat_[n_];
       for (int k = n_ - 1; k >= 0; --k) {
-        const Mat<kNu, kNx> bm = b_[k].transpose() * m;
-        Mat<kNu, kNu> hkk = r_mat_[k];
-        hkk.noalias() += bm * b_[k];
-        qp_.H.template block<kNu, kNu>(k * kNu, k * kNu) = 0.5 * (hkk + hkk.transpose());
-        k_gain_[k] = s_mat_[k];
-        k_gain_[k].noalias() += bm * a_[k];
-        const MX ma = m * a_[k];
-        m = q_mat_[k];
-        m.noalias() += a_[k].transpose() * ma;
+        const Mat<kNu, kNx> bp = b_[k].transpose() * p;
+        Mat<kNu, kNu> rbar = r_mat_[k];
+        rbar.noalias() += bp * b_[k];
+        Mat<kNu, kNx> bpa;
+        MultiplyARight(k, bp, &bpa);
+        const Mat<kNu, kNx> sbar = s_mat_[k] + bpa;
+        const Eigen::LLT<Mat<kNu, kNu>> llt(rbar);
+        auto diag = l.template block<kNu, kNu>(UPos(k), UPos(k));
+        if (llt.info() == Eigen::Success) {
+          const Mat<kNu, kNu> lk = llt.matrixL();
+          diag = lk;
+          // Kt_k = L_k^-1 Sbar_k by forward substitution (Eigen's triangular solve for a
+          // matrix right-hand side goes through its blocked GEMM kernel).
+          Mat<kNu, kNx>& kt = k_gain_[k];
+          for (int i = 0; i < kNu; ++i) {
+            kt.row(i) = sbar.row(i);
+            for (int c = 0; c < i; ++c) kt.row(i) -= lk(i, c) * kt.row(c);
+            kt.row(i) /= lk(i, i);
+          }
+        } else {
+          diag.setZero();  // a zero pivot: the QP reports kNotConvex
+          k_gain_[k].setZero();
+        }
+        MX pa, apa;
+        MultiplyARight(k, p, &pa);
+        MultiplyARight(k, pa.transpose(), &apa);  // (P A)' A = A' P A
+        p = q_mat_[k] + apa;
+        p.noalias() -= k_gain_[k].transpose() * k_gain_[k];
       }
-      for (int j = 0; j < n_; ++j) {
-        for (int i = j + 1; i < n_; ++i) {
-          Mat<kNu, kNu> hij;
-          hij.noalias() = k_gain_[i] * G(i - 1, j);
-          qp_.H.template block<kNu, kNu>(i * kNu, j * kNu) = hij;
-          qp_.H.template block<kNu, kNu>(j * kNu, i * kNu) = hij.transpose();
+      for (int k = 1; k < n_; ++k) {
+        for (int j = 0; j < k; ++j) {
+          l.template block<kNu, kNu>(UPos(j), UPos(k)).noalias() =
+              (k_gain_[k] * G(k - 1, j)).transpose();
         }
       }
     } else {
@@ -491,8 +579,8 @@ class RtiSolver {
           Mat<kNu, kNu> hkj = Mat<kNu, kNu>::Zero();
           AddS(k, gkj, &hkj);
           AddBTransposed(k, p, &hkj);
-          qp_.H.template block<kNu, kNu>(k * kNu, j * kNu) = hkj;
-          qp_.H.template block<kNu, kNu>(j * kNu, k * kNu) = hkj.transpose();
+          qp.H.template block<kNu, kNu>(UPos(k), UPos(j)) = hkj;
+          qp.H.template block<kNu, kNu>(UPos(j), UPos(k)) = hkj.transpose();
           pk.setZero();
           AddQ(k, gkj, &pk);
           AddATransposed(k, p, &pk);
@@ -500,25 +588,14 @@ class RtiSolver {
         }
         Mat<kNu, kNu> hjj = r_mat_[j];
         AddBTransposed(j, p, &hjj);
-        qp_.H.template block<kNu, kNu>(j * kNu, j * kNu) = 0.5 * (hjj + hjj.transpose());
+        qp.H.template block<kNu, kNu>(UPos(j), UPos(j)) = 0.5 * (hjj + hjj.transpose());
       }
-    }
-    for (int s = 0; s < nsl_; ++s) {
-      qp_.H(n_ * kNu + s, n_ * kNu + s) = settings_.soft_quadratic_weight;
-      qp_.g[n_ * kNu + s] = settings_.soft_linear_weight;
-      qp_.lb[n_ * kNu + s] = 0.0;
-      qp_.ub[n_ * kNu + s] = kInf;
     }
     for (int r = 0; r < nc_; ++r) {
       const Row& row = rows_[r];
       for (int j = 0; j < row.stage; ++j) {
-        qp_.A.template block<1, kNu>(r, j * kNu) = G(row.stage - 1, j).row(row.index);
+        qp.A.template block<1, kNu>(r, UPos(j)) = G(row.stage - 1, j).row(row.index);
       }
-      if (row.kind != 0) qp_.A(r, n_ * kNu + row.stage - 1) = row.kind == 1 ? 1.0 : -1.0;
-    }
-    if (nsl_ > 0) {
-      qp_no_slack_.H = qp_.H.topLeftCorner(n_ * kNu, n_ * kNu);
-      qp_no_slack_.A = qp_.A.leftCols(n_ * kNu);
     }
   }
 
@@ -527,9 +604,23 @@ class RtiSolver {
 
   // Products with the stage matrices over their structural nonzeros (the neighbour blocks
   // of the full follower models are mostly zero; for L, A_k has 30 of 81 entries).
+  static constexpr bool kStructuredA = detail::HasStructuredTransition<Model>::value;
   template <class In, class Out>
   void MultiplyA(int k, const In& in, Out* out) const {
-    a_pattern_.Multiply(a_[k], in, out);
+    if constexpr (kStructuredA) {
+      Model::MultiplyTransition(a_[k], in, out);
+    } else {
+      a_pattern_.Multiply(a_[k], in, out);
+    }
+  }
+  // out = in A_k.
+  template <class In, class Out>
+  void MultiplyARight(int k, const In& in, Out* out) const {
+    if constexpr (kStructuredA) {
+      Model::MultiplyTransitionRight(in, a_[k], out);
+    } else {
+      out->noalias() = in * a_[k];
+    }
   }
   template <class In, class Out>
   void AddATransposed(int k, const In& in, Out* out) const {

@@ -168,6 +168,34 @@ TEST(Rk4Test, StructuredDiscretisationEqualsGenericRk4) {
   }
 }
 
+TEST(Rk4Test, StructuredTransitionProductsEqualDenseProducts) {
+  std::mt19937 rng(5);
+  const model::AttitudeModelParams m;
+  for (int trial = 0; trial < 5; ++trial) {
+    // Given: a transition matrix of Discretise (zero off its structure) at a random point
+    const Vec<9> x = RandomVec<9>(&rng, 0.6);
+    Vec<3> u = RandomVec<3>(&rng, 0.35);
+    u[0] += 13.0;
+    Mat<9, 9> a = Mat<9, 9>::Zero();
+    Mat<9, 3> b = Mat<9, 3>::Zero();
+    model::QuadrotorModel::Discretise(x, u, 0.2, m, 0.05, 2, &a, &b);
+    Mat<9, 3> in = Mat<9, 3>::Zero();
+    Mat<4, 9> in_left = Mat<4, 9>::Zero();
+    for (int i = 0; i < 9; ++i) {
+      in.row(i) = RandomVec<3>(&rng, 1.0).transpose();
+      in_left.col(i) = RandomVec<4>(&rng, 1.0);
+    }
+    // When: multiplied by the structured products
+    Mat<9, 3> out;
+    Mat<4, 9> out_left;
+    model::QuadrotorModel::MultiplyTransition(a, in, &out);
+    model::QuadrotorModel::MultiplyTransitionRight(in_left, a, &out_left);
+    // Then: the dense products
+    EXPECT_LT((out - a * in).cwiseAbs().maxCoeff(), 1e-14);
+    EXPECT_LT((out_left - in_left * a).cwiseAbs().maxCoeff(), 1e-14);
+  }
+}
+
 TEST(Rk4Test, FourthOrderConvergence) {
   // Given a tilted vehicle, the RK4 error shrinks ~16x when the step halves
   const model::AttitudeModelParams m;

@@ -492,6 +492,60 @@ TEST(DenseQpSolverTest, IndefiniteOrSingularHessianIsNotConvex) {
   EXPECT_EQ(solver.Solve(qp, &sol), QpStatus::kOptimal);
 }
 
+TEST(DenseQpSolverTest, GivenCholeskyFactorGivesTheSameSolutionWithoutReadingH) {
+  std::mt19937 rng(77);
+  for (int trial = 0; trial < 10; ++trial) {
+    // Given: a random constrained QP, and a copy carrying only the factor of H (H poisoned
+    // with NaN in the copy, so any read of it would show), solved in sequence (warm starts)
+    const DenseQp qp = RandomFeasibleQp(30, 60, &rng);
+    DenseQp factored = qp;
+    factored.L = qp.H.llt().matrixL();
+    factored.L.triangularView<Eigen::StrictlyUpper>().setConstant(kNaNValue);
+    factored.H.setConstant(kNaNValue);
+    factored.h_factor_given = true;
+    DenseQpSolver with_h(qp.dims());
+    DenseQpSolver with_factor(qp.dims());
+    QpSolution a(qp.dims());
+    QpSolution b(qp.dims());
+    for (int solve = 0; solve < 2; ++solve) {
+      // When: both solve
+      ASSERT_EQ(with_h.Solve(qp, &a), QpStatus::kOptimal);
+      ASSERT_EQ(with_factor.Solve(factored, &b), QpStatus::kOptimal);
+      // Then: the same solution, multipliers, objective, and KKT holds for the factor
+      EXPECT_LT((a.x - b.x).lpNorm<Eigen::Infinity>(), 1e-9);
+      EXPECT_LT((a.y_constraints - b.y_constraints).lpNorm<Eigen::Infinity>(), 1e-8);
+      EXPECT_LT((a.y_bounds - b.y_bounds).lpNorm<Eigen::Infinity>(), 1e-8);
+      EXPECT_NEAR(a.objective, b.objective, 1e-9 * (1.0 + std::abs(a.objective)));
+      EXPECT_LE(ComputeKktResiduals(factored, b).Max(), kKktTol);
+    }
+    EXPECT_GT(b.num_active, 0);
+  }
+}
+
+TEST(DenseQpSolverTest, BadGivenFactorIsAStatus) {
+  DenseQpSolver solver(DenseQpDims{3, 0});
+  QpSolution sol(DenseQpDims{3, 0});
+  DenseQp qp(DenseQpDims{3, 0});
+  qp.h_factor_given = true;
+  qp.g = Eigen::Vector3d(1.0, 2.0, 3.0);
+  // Given: a zero or negative pivot -> not convex
+  qp.L = Eigen::Vector3d(1.0, 0.0, 2.0).asDiagonal();
+  EXPECT_EQ(solver.Solve(qp, &sol), QpStatus::kNotConvex);
+  qp.L = Eigen::Vector3d(1.0, -1.0, 2.0).asDiagonal();
+  EXPECT_EQ(solver.Solve(qp, &sol), QpStatus::kNotConvex);
+  // Given: NaN in the lower triangle -> numerical error
+  qp.L.setIdentity();
+  qp.L(2, 0) = kNaNValue;
+  EXPECT_EQ(solver.Solve(qp, &sol), QpStatus::kNumericalError);
+  // Given: wrong size -> invalid input
+  qp.L = Eigen::MatrixXd::Identity(2, 2);
+  EXPECT_EQ(solver.Solve(qp, &sol), QpStatus::kInvalidInput);
+  // Given: a valid factor -> x = -(L L')^-1 g
+  qp.L = Eigen::Vector3d(1.0, 2.0, 4.0).asDiagonal();
+  ASSERT_EQ(solver.Solve(qp, &sol), QpStatus::kOptimal);
+  EXPECT_LT((sol.x - Eigen::Vector3d(-1.0, -0.5, -3.0 / 16.0)).norm(), 1e-14);
+}
+
 TEST(DenseQpSolverTest, IterationCapGivesMaxIterations) {
   // Given: a QP with many active constraints and a cap of 2 changes
   std::mt19937 rng(71);
