@@ -302,6 +302,7 @@ void Record(Solver* solver, const Vec<Solver::kNx>& x0, const Vec3& u, const Sto
   rec->step_us = 1e6 * sw.Seconds();
   rec->feedback_us = 1e6 * solver->stats().time_feedback;
   rec->qp_iterations = solver->stats().qp_iterations;
+  rec->unconstrained_step = solver->stats().unconstrained_step;
   rec->fallback = solver->stats().fallback;
   rec->kkt = solver->ComputeKkt(x0);
   rec->input_violation = InputViolation(u);

@@ -109,6 +109,7 @@ struct StepRecord {
   double step_us = 0;        ///< shift + references + prepare + feedback [us]
   double feedback_us = 0;    ///< x0 to u0 [us]
   int qp_iterations = 0;
+  bool unconstrained_step = false;  ///< the unconstrained Riccati step solved the QP
   double kkt = 0;            ///< KKT value after the step (computed outside the timing)
   double error_m = 0;        ///< L: |p - p_r|; F: mean_j |dx_j - d_j| at the end of the step
   bool fallback = false;

@@ -22,6 +22,11 @@ struct RtiSettings {
   double cpu_budget = 0.05;          ///< [s] later calls stop iterating past this CPU time
   double soft_linear_weight = 1e4;   ///< L1 penalty on the per-stage slack of soft bounds
   double soft_quadratic_weight = 1e2;  ///< L2 penalty on the same slack
+  /// Problems with nx <= 16 (Riccati condensing): after a step whose QP had no active
+  /// constraint, take the unconstrained Riccati step and skip condensing and the QP when
+  /// it satisfies every bound (it is then the QP's solution). false: always condense and
+  /// solve the QP. Both give the same iterates.
+  bool unconstrained_shortcut = true;
   qp::QpSettings qp;                 ///< settings of the QP solver
 
   void Validate() const {
@@ -71,6 +76,7 @@ struct RtiStats {
   qp::QpStatus qp_status = qp::QpStatus::kOptimal;
   int sqp_iterations = 0;   ///< SQP iterations in the last call
   int qp_iterations = 0;    ///< active-set changes, summed over the call's QPs
+  bool unconstrained_step = false;  ///< the last feedback took the unconstrained Riccati step
   bool fallback = false;    ///< the shifted previous solution was applied
   long fallback_count = 0;  ///< fallbacks since construction
   double kkt = -1.0;        ///< KKT value when computed (else -1)

@@ -120,6 +120,11 @@ class RtiSolver {
     lambda_.assign(n_ + 1, X::Zero());
     mu_.assign(n_ + 1, X::Zero());
     k_gain_.assign(n_, Mat<kNu, kNx>::Zero());
+    if constexpr (kRiccatiCondensing) {
+      p_mat_.assign(n_ + 1, MX::Zero());
+      l_diag_.assign(n_, Mat<kNu, kNu>::Identity());
+      kt_vec_.assign(n_, U::Zero());
+    }
     g_.assign(static_cast<std::size_t>(n_) * (n_ + 1) / 2, MU::Zero());
     qp_ = qp::DenseQp({nz_, nc_});
     qp_solution_ = qp::QpSolution({nz_, nc_});
@@ -231,7 +236,16 @@ class RtiSolver {
                                                         qn_pattern_, n_);
       finite = finite && q_vec_[n_].allFinite();
     }
-    Condense();
+    if constexpr (kRiccatiCondensing) {
+      Riccati();
+      // Condensing for the QP is done now (outside the feedback latency) unless the last
+      // step took the unconstrained Riccati step: then it is likely to do so again, and
+      // Feedback condenses only if the step violates a bound.
+      condensed_ = false;
+      if (!settings_.unconstrained_shortcut || last_qp_active_) Condense();
+    } else {
+      Condense();
+    }
     prepared_ = finite;
     stats_.time_prepare = sw.Seconds();
     return finite;
@@ -243,11 +257,23 @@ class RtiSolver {
   RtiStatus Feedback(const X& x0, U* u0) {
     Stopwatch sw;
     RtiStatus status = RtiStatus::kSuccess;
+    stats_.unconstrained_step = false;
     if (!x0.allFinite()) {
       status = RtiStatus::kInvalidInput;
     } else if (!prepared_) {
       status = RtiStatus::kNanDetected;
+    } else if (!condensed_ && TryUnconstrainedStep(x0)) {
+      // The unconstrained minimiser of the QP satisfies every bound: it is the QP's
+      // solution, with no active constraint.
+      for (int k = 0; k <= n_; ++k) x_[k] += dx_[k];
+      for (int k = 0; k < n_; ++k) u_[k] += du_[k];
+      x_[0] = x0;
+      has_multipliers_ = true;
+      last_qp_active_ = false;
+      stats_.qp_status = qp::QpStatus::kOptimal;
+      stats_.unconstrained_step = true;
     } else {
+      if (!condensed_) Condense();
       qp::DenseQp& qp = HardQp();
       // Free response of the linearised dynamics (no input change), including x0.
       e_[0] = x0 - x_[0];
@@ -289,6 +315,8 @@ class RtiSolver {
       }
       stats_.qp_status = qs;
       stats_.qp_iterations += qp_solution_.iterations;
+      last_qp_active_ = qp_solution_.y_bounds.head(n_ * kNu).any() ||
+                        qp_solution_.y_constraints.any() || qs != qp::QpStatus::kOptimal;
       if (qs != qp::QpStatus::kOptimal) {
         status = RtiStatus::kQpFailure;
       } else {
@@ -516,6 +544,7 @@ class RtiSolver {
 
   // Dense condensing of the Hessian and the constraint rows (independent of x0).
   void Condense() {
+    condensed_ = true;
     qp::DenseQp& qp = HardQp();
     // G(k, j) = d x_{k+1} / d u_j for j <= k.
     for (int j = 0; j < n_; ++j) {
@@ -523,44 +552,13 @@ class RtiSolver {
       for (int k = j + 1; k < n_; ++k) MultiplyA(k, G(k - 1, j), &G(k, j));
     }
     if constexpr (kRiccatiCondensing) {
-      // Riccati recursion P_N = Q_N, Rbar_k = R_k + B_k' P_k+1 B_k = L_k L_k',
-      // Kt_k = L_k^-1 (S_k + B_k' P_k+1 A_k), P_k = Q_k + A_k' P_k+1 A_k - Kt_k' Kt_k.
-      // With the inputs ordered last stage first, the Cholesky factor of the condensed
-      // Hessian has the diagonal blocks L_k and below them (Kt_k G(k-1, j))' for j < k
-      // (eliminating u_N-1 first is one backward Riccati step): O(N nx^3 + N^2 nx nu^2),
-      // as much as forming the Hessian, and the QP needs no factorisation.
+      // Cholesky factor of the condensed Hessian from the Riccati recursion (Riccati()):
+      // with the inputs ordered last stage first, it has the diagonal blocks L_k and
+      // below them (Kt_k G(k-1, j))' for j < k, since eliminating u_N-1 first is one
+      // backward Riccati step: O(N^2 nx nu^2), as much as forming the Hessian, and the
+      // QP needs no factorisation.
       Eigen::MatrixXd& l = qp.L;
-      MX p = q_mat_[n_];
-      for (int k = n_ - 1; k >= 0; --k) {
-        const Mat<kNu, kNx> bp = b_[k].transpose() * p;
-        Mat<kNu, kNu> rbar = r_mat_[k];
-        rbar.noalias() += bp * b_[k];
-        Mat<kNu, kNx> bpa;
-        MultiplyARight(k, bp, &bpa);
-        const Mat<kNu, kNx> sbar = s_mat_[k] + bpa;
-        const Eigen::LLT<Mat<kNu, kNu>> llt(rbar);
-        auto diag = l.template block<kNu, kNu>(UPos(k), UPos(k));
-        if (llt.info() == Eigen::Success) {
-          const Mat<kNu, kNu> lk = llt.matrixL();
-          diag = lk;
-          // Kt_k = L_k^-1 Sbar_k by forward substitution (Eigen's triangular solve for a
-          // matrix right-hand side goes through its blocked GEMM kernel).
-          Mat<kNu, kNx>& kt = k_gain_[k];
-          for (int i = 0; i < kNu; ++i) {
-            kt.row(i) = sbar.row(i);
-            for (int c = 0; c < i; ++c) kt.row(i) -= lk(i, c) * kt.row(c);
-            kt.row(i) /= lk(i, i);
-          }
-        } else {
-          diag.setZero();  // a zero pivot: the QP reports kNotConvex
-          k_gain_[k].setZero();
-        }
-        MX pa, apa;
-        MultiplyARight(k, p, &pa);
-        MultiplyARight(k, pa.transpose(), &apa);  // (P A)' A = A' P A
-        p = q_mat_[k] + apa;
-        p.noalias() -= k_gain_[k].transpose() * k_gain_[k];
-      }
+      for (int k = 0; k < n_; ++k) l.template block<kNu, kNu>(UPos(k), UPos(k)) = l_diag_[k];
       for (int k = 1; k < n_; ++k) {
         for (int j = 0; j < k; ++j) {
           l.template block<kNu, kNu>(UPos(j), UPos(k)).noalias() =
@@ -596,6 +594,108 @@ class RtiSolver {
       for (int j = 0; j < row.stage; ++j) {
         qp.A.template block<1, kNu>(r, UPos(j)) = G(row.stage - 1, j).row(row.index);
       }
+    }
+  }
+
+  // Riccati recursion P_N = Q_N, Rbar_k = R_k + B_k' P_k+1 B_k = L_k L_k',
+  // Kt_k = L_k^-1 (S_k + B_k' P_k+1 A_k), P_k = Q_k + A_k' P_k+1 A_k - Kt_k' Kt_k:
+  // O(N nx^3). A Rbar_k that is not positive definite leaves L_k = 0 (the QP then
+  // reports kNotConvex) and riccati_ok_ false.
+  void Riccati() {
+    riccati_ok_ = true;
+    p_mat_[n_] = q_mat_[n_];
+    for (int k = n_ - 1; k >= 0; --k) {
+      const MX& p = p_mat_[k + 1];
+      const Mat<kNu, kNx> bp = b_[k].transpose() * p;
+      Mat<kNu, kNu> rbar = r_mat_[k];
+      rbar.noalias() += bp * b_[k];
+      Mat<kNu, kNx> bpa;
+      MultiplyARight(k, bp, &bpa);
+      const Mat<kNu, kNx> sbar = s_mat_[k] + bpa;
+      const Eigen::LLT<Mat<kNu, kNu>> llt(rbar);
+      Mat<kNu, kNx>& kt = k_gain_[k];
+      if (llt.info() == Eigen::Success) {
+        l_diag_[k] = llt.matrixL();
+        ForwardSubstitute(l_diag_[k], sbar, &kt);
+      } else {
+        l_diag_[k].setZero();
+        kt.setZero();
+        riccati_ok_ = false;
+      }
+      MX pa, apa;
+      MultiplyARight(k, p, &pa);
+      MultiplyARight(k, pa.transpose(), &apa);  // (P A)' A = A' P A
+      p_mat_[k] = q_mat_[k] + apa;
+      p_mat_[k].noalias() -= kt.transpose() * kt;
+    }
+  }
+
+  // out = l^-1 in for a lower-triangular kNu x kNu l (Eigen's triangular solve for a
+  // matrix right-hand side goes through its blocked GEMM kernel).
+  template <class In, class Out>
+  static void ForwardSubstitute(const Mat<kNu, kNu>& l, const In& in, Out* out) {
+    for (int i = 0; i < kNu; ++i) {
+      out->row(i) = in.row(i);
+      for (int c = 0; c < i; ++c) out->row(i) -= l(i, c) * out->row(c);
+      out->row(i) /= l(i, i);
+    }
+  }
+
+  // The unconstrained minimiser of the QP by the Riccati factorisation: backward
+  // w = P_k+1 d_k + p_k+1, kt_k = L_k^-1 (r_k + B_k' w), p_k = q_k + A_k' w - Kt_k' kt_k;
+  // forward du_k = -L_k^-T (Kt_k dx_k + kt_k), dx_k+1 = A_k dx_k + B_k du_k + d_k.
+  // O(N nx^2), no condensing. Writes dx_, du_ and, when it returns true (finite and every
+  // input and state bound satisfied, soft ones as hard), qp_solution_ as the QP's.
+  bool TryUnconstrainedStep(const X& x0) {
+    if constexpr (!kRiccatiCondensing) {
+      return false;
+    } else {
+      if (!riccati_ok_) return false;
+      X p = q_vec_[n_];
+      for (int k = n_ - 1; k >= 0; --k) {
+        X w = p;
+        w.noalias() += p_mat_[k + 1] * d_[k];
+        U r = r_vec_[k];
+        AddBTransposed(k, w, &r);
+        ForwardSubstitute(l_diag_[k], r, &kt_vec_[k]);
+        p = q_vec_[k];
+        AddATransposed(k, w, &p);
+        p.noalias() -= k_gain_[k].transpose() * kt_vec_[k];
+      }
+      dx_[0] = x0 - x_[0];
+      bool feasible = true;
+      for (int k = 0; k < n_; ++k) {
+        U v = kt_vec_[k];
+        v.noalias() += k_gain_[k] * dx_[k];
+        l_diag_[k].transpose().template triangularView<Eigen::Upper>().solveInPlace(v);
+        du_[k] = -v;
+        MultiplyA(k, dx_[k], &dx_[k + 1]);
+        AddB(k, du_[k], &dx_[k + 1]);
+        dx_[k + 1] += d_[k];
+        const U u_new = u_[k] + du_[k];
+        feasible = feasible && (u_new.array() >= lbu_[k].array()).all() &&
+                   (u_new.array() <= ubu_[k].array()).all();
+      }
+      for (int r = 0; r < nc_ && feasible; ++r) {
+        const Row& row = rows_[r];
+        const double v = x_[row.stage][row.index] + dx_[row.stage][row.index];
+        feasible = v >= lbx_[row.stage][row.index] && v <= ubx_[row.stage][row.index];
+      }
+      if (!feasible) return false;  // (also when NaN: comparisons with NaN are false)
+      for (int k = 0; k < n_; ++k) qp_solution_.x.template segment<kNu>(UPos(k)) = du_[k];
+      qp_solution_.x.tail(nsl_).setZero();
+      qp_solution_.y_bounds.setZero();
+      qp_solution_.y_constraints.setZero();
+      qp_solution_.iterations = 0;
+      qp_solution_.status = qp::QpStatus::kOptimal;
+      qp_solution_.objective = kNaN;  // not computed on this path
+      qp_solution_.num_active = 0;
+      qp_solution_.num_drops = 0;
+      qp_solution_.num_warm_start_adds = 0;
+      // What the active-set solvers would remember: an empty active set.
+      qp_solver_->ResetWarmStart();
+      if (qp_no_slack_solver_) qp_no_slack_solver_->ResetWarmStart();
+      return true;
     }
   }
 
@@ -780,6 +880,16 @@ class RtiSolver {
   bool prepared_ = false;
   bool first_call_ = true;
   bool has_multipliers_ = false;
+  // Riccati data of the small-nx path: P_k (k = 0..N), L_k, and kt_k of the last
+  // unconstrained step; whether every Rbar_k was positive definite; whether the QP data
+  // (G, factor blocks, constraint rows) is built; whether the last QP had an active
+  // constraint (or failed).
+  std::vector<MX> p_mat_;
+  std::vector<Mat<kNu, kNu>> l_diag_;
+  std::vector<U> kt_vec_;
+  bool riccati_ok_ = false;
+  bool condensed_ = false;
+  bool last_qp_active_ = true;
 };
 
 }  // namespace fnmpc::rti

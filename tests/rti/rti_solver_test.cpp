@@ -171,6 +171,38 @@ TEST(RtiClosedLoopTest, AggressiveScenarioRespectsBounds) {
   }
 }
 
+TEST(RtiClosedLoopTest, UnconstrainedShortcutGivesTheSameLoop) {
+  for (ProblemId p : {ProblemId::kL, ProblemId::kF2Reduced}) {
+    for (Scenario sc : {Scenario::kNominal, Scenario::kAggressive}) {
+      // Given: the same closed loop with and without the unconstrained Riccati step
+      RtiSettings off = SpecSettings();
+      off.unconstrained_shortcut = false;
+      const auto with = RunClosedLoop(p, sc, 260);
+      const auto without = RunClosedLoop(p, sc, 260, off);
+      // Then: the same errors, KKT values and QP iterations step by step, and the
+      // shortcut was taken in some steps (never without it) and not in others when
+      // bounds are active
+      int taken = 0;
+      for (std::size_t k = 0; k < with.steps.size(); ++k) {
+        const auto& a = with.steps[k];
+        const auto& b = without.steps[k];
+        EXPECT_NEAR(a.error_m, b.error_m, 1e-9) << ToString(p) << " step " << k;
+        EXPECT_NEAR(a.kkt, b.kkt, 1e-7 * (1.0 + b.kkt)) << ToString(p) << " step " << k;
+        EXPECT_EQ(a.qp_iterations, b.qp_iterations) << ToString(p) << " step " << k;
+        EXPECT_FALSE(b.unconstrained_step);
+        taken += a.unconstrained_step ? 1 : 0;
+      }
+      if (sc == Scenario::kNominal) {
+        EXPECT_GT(taken, 250) << ToString(p);
+      } else {
+        EXPECT_GT(taken, 0) << ToString(p);
+        EXPECT_LT(taken, 200) << ToString(p);
+      }
+      EXPECT_EQ(with.fallbacks, 0);
+    }
+  }
+}
+
 TEST(RtiClosedLoopTest, ReducedAndFullFollowersFlyTheSameLoop) {
   // Same discretisation and optimum: the closed loops agree (not bit for bit: the
   // RTI iterates differ in how neighbour states enter the guess).
