@@ -118,7 +118,22 @@ struct QuadrotorModel {
   /// out = in A (out must not alias in).
   template <class In, class Out>
   static void MultiplyTransitionRight(const In& in, const Mat<kNx, kNx>& a, Out* out);
+  /// out = A' in (out must not alias in).
+  template <class In, class Out>
+  static void MultiplyTransitionTransposed(const Mat<kNx, kNx>& a, const In& in, Out* out);
 };
+
+template <class In, class Out>
+void QuadrotorModel::MultiplyTransitionTransposed(const Mat<kNx, kNx>& a, const In& in, Out* out) {
+  const double dt = a(kPos, kVel);
+  const auto pos = in.template middleRows<3>(kPos);
+  const auto vel = in.template middleRows<3>(kVel);
+  out->template middleRows<3>(kPhi) = a.diagonal().tail<3>().asDiagonal() * in.template middleRows<3>(kPhi);
+  out->template middleRows<3>(kPhi).noalias() += a.block<3, 3>(kPos, kPhi).transpose() * pos;
+  out->template middleRows<3>(kPhi).noalias() += a.block<3, 3>(kVel, kPhi).transpose() * vel;
+  out->template middleRows<3>(kVel) = vel + dt * pos;
+  out->template middleRows<3>(kPos) = pos;
+}
 
 template <class In, class Out>
 void QuadrotorModel::MultiplyTransition(const Mat<kNx, kNx>& a, const In& in, Out* out) {

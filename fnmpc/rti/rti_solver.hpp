@@ -22,8 +22,8 @@
 namespace fnmpc::rti {
 
 namespace detail {
-/// Models with structured products with their transition matrix (Model::MultiplyTransition
-/// and MultiplyTransitionRight, see QuadrotorModel). A detection trait: the ROS nodes
+/// Models with structured products with their transition matrix (Model::MultiplyTransition,
+/// MultiplyTransitionRight and MultiplyTransitionTransposed, see QuadrotorModel). A detection trait: the ROS nodes
 /// include this header from C++17 units.
 template <class Model, class = void>
 struct HasStructuredTransition : std::false_type {};
@@ -35,7 +35,11 @@ struct HasStructuredTransition<
                        decltype(Model::MultiplyTransitionRight(
                            std::declval<const Mat<1, Model::kNx>&>(),
                            std::declval<const Mat<Model::kNx, Model::kNx>&>(),
-                           std::declval<Mat<1, Model::kNx>*>()))>> : std::true_type {};
+                           std::declval<Mat<1, Model::kNx>*>())),
+                       decltype(Model::MultiplyTransitionTransposed(
+                           std::declval<const Mat<Model::kNx, Model::kNx>&>(),
+                           std::declval<const Vec<Model::kNx>&>(), std::declval<Vec<Model::kNx>*>()))>>
+    : std::true_type {};
 }  // namespace detail
 
 /// Real-time-iteration SQP solver for a nonlinear least-squares OCP `Problem`
@@ -624,7 +628,7 @@ class RtiSolver {
       }
       MX pa, apa;
       MultiplyARight(k, p, &pa);
-      MultiplyARight(k, pa.transpose(), &apa);  // (P A)' A = A' P A
+      MultiplyATransposed(k, pa, &apa);
       p_mat_[k] = q_mat_[k] + apa;
       p_mat_[k].noalias() -= kt.transpose() * kt;
     }
@@ -658,8 +662,8 @@ class RtiSolver {
         U r = r_vec_[k];
         AddBTransposed(k, w, &r);
         ForwardSubstitute(l_diag_[k], r, &kt_vec_[k]);
-        p = q_vec_[k];
-        AddATransposed(k, w, &p);
+        MultiplyATransposed(k, w, &p);
+        p += q_vec_[k];
         p.noalias() -= k_gain_[k].transpose() * kt_vec_[k];
       }
       dx_[0] = x0 - x_[0];
@@ -711,6 +715,15 @@ class RtiSolver {
       Model::MultiplyTransition(a_[k], in, out);
     } else {
       a_pattern_.Multiply(a_[k], in, out);
+    }
+  }
+  // out = A_k' in.
+  template <class In, class Out>
+  void MultiplyATransposed(int k, const In& in, Out* out) const {
+    if constexpr (kStructuredA) {
+      Model::MultiplyTransitionTransposed(a_[k], in, out);
+    } else {
+      out->noalias() = a_[k].transpose() * in;
     }
   }
   // out = in A_k.

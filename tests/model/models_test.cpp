@@ -190,6 +190,9 @@ TEST(Rk4Test, StructuredTransitionProductsEqualDenseProducts) {
     Mat<4, 9> out_left;
     model::QuadrotorModel::MultiplyTransition(a, in, &out);
     model::QuadrotorModel::MultiplyTransitionRight(in_left, a, &out_left);
+    Mat<9, 3> out_transposed;
+    model::QuadrotorModel::MultiplyTransitionTransposed(a, in, &out_transposed);
+    EXPECT_LT((out_transposed - a.transpose() * in).cwiseAbs().maxCoeff(), 1e-14);
     // Then: the dense products
     EXPECT_LT((out - a * in).cwiseAbs().maxCoeff(), 1e-14);
     EXPECT_LT((out_left - in_left * a).cwiseAbs().maxCoeff(), 1e-14);

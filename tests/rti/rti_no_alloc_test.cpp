@@ -47,22 +47,29 @@ TEST(RtiNoAllocTest, LeaderStepsDoNotAllocate) {
   // being the predicted next node with a position disturbance (the velocity stays
   // reachable under the hard |v| <= 2 bound, so every QP is feasible)
   int steps_with_active_bounds = 0;
+  int unconstrained_steps = 0;  // the Riccati step without condensing or QP
   g_allocations = 0;
   g_counting = true;
-  for (int k = 1; k < 60; ++k) {
+  // (then 140 steps holding the last waypoint without disturbance, where the QP's active
+  // set empties and the unconstrained Riccati step takes over)
+  for (int k = 1; k < 200; ++k) {
     x = solver.states()[1];
-    x.head<3>() += Vec3(0.01, -0.005, 0.002);
+    if (k < 60) x.head<3>() += Vec3(0.01, -0.005, 0.002);
     solver.Shift();
-    SetLeaderReferences(&solver, ref, k * 0.05);
+    SetLeaderReferences(&solver, ref, k < 60 ? k * 0.05 : 30.0);
     solver.Step(x, &u);
+    unconstrained_steps += solver.stats().unconstrained_step ? 1 : 0;
     const auto& qp = solver.qp_solution();
     if (qp.y_bounds.cwiseAbs().maxCoeff() > 0.0 || qp.y_constraints.cwiseAbs().maxCoeff() > 0.0) {
       ++steps_with_active_bounds;
     }
   }
   g_counting = false;
-  // Then nothing was allocated, bounds were active and every QP was solved
+  // Then nothing was allocated, bounds were active, both the QP and the unconstrained
+  // Riccati step ran, and every QP was solved
   EXPECT_GT(steps_with_active_bounds, 0);
+  EXPECT_GT(unconstrained_steps, 0);
+  EXPECT_LT(unconstrained_steps, 199);
   EXPECT_EQ(g_allocations.load(), 0);
   EXPECT_EQ(solver.stats().fallback_count, 0);
 }
