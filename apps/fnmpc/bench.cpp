@@ -38,6 +38,7 @@ nlohmann::json ToJson(const rti::benchmark::ClosedLoopResult& r,
           {"kkt_max", s.kkt_max},
           {"rms_error_m", s.rms_error_m},
           {"fallbacks", s.fallbacks},
+          {"unconstrained_steps", s.unconstrained_steps},
           {"initial_sqp_iterations", r.initial_iterations},
           {"initial_kkt", r.initial_kkt},
           {"max_input_violation", s.max_input_violation},
@@ -61,9 +62,9 @@ int Run(const BenchOptions& o) {
   }
   nlohmann::json out = nlohmann::json::array();
   if (!o.json) {
-    fmt::print("{:<11} {:<10} {:>9} {:>9} {:>9} {:>9} {:>6} {:>9} {:>9} {:>9} {:>5}\n",
+    fmt::print("{:<11} {:<10} {:>9} {:>9} {:>9} {:>9} {:>6} {:>9} {:>9} {:>9} {:>5} {:>5}\n",
                "problem", "scenario", "med[us]", "p99[us]", "max[us]", "fb[us]", "qp-it",
-               "kkt-med", "kkt-max", "rms[m]", "fall");
+               "kkt-med", "kkt-max", "rms[m]", "fall", "ricc");
   }
   for (Scenario sc : scenarios) {
     for (ProblemId p : problems) {
@@ -73,10 +74,10 @@ int Run(const BenchOptions& o) {
         out.push_back(ToJson(r, s));
       } else {
         fmt::print("{:<11} {:<10} {:>9.1f} {:>9.1f} {:>9.1f} {:>9.2f} {:>6.0f} {:>9.1e} {:>9.1e} "
-                   "{:>9.5f} {:>5}\n",
+                   "{:>9.5f} {:>5} {:>5}\n",
                    ToString(p), ToString(sc), s.step_median_us, s.step_p99_us, s.step_max_us,
                    s.feedback_median_us, s.qp_iterations_median, s.kkt_median, s.kkt_max,
-                   s.rms_error_m, s.fallbacks);
+                   s.rms_error_m, s.fallbacks, s.unconstrained_steps);
         std::fflush(stdout);
       }
     }

@@ -438,6 +438,7 @@ ClosedLoopSummary Summarize(const ClosedLoopResult& result) {
       step.push_back(r.step_us);
       fb.push_back(r.feedback_us);
       qpit.push_back(r.qp_iterations);
+      s.unconstrained_steps += r.unconstrained_step ? 1 : 0;
     }
     kkt.push_back(r.kkt);
     sq += r.error_m * r.error_m;

@@ -138,6 +138,7 @@ struct ClosedLoopSummary {
   double kkt_median = 0, kkt_max = 0, rms_error_m = 0;
   double max_input_violation = 0, max_hard_state_violation = 0;
   long fallbacks = 0;
+  long unconstrained_steps = 0;  ///< steps (after step 0) solved by the unconstrained Riccati step
 };
 ClosedLoopSummary Summarize(const ClosedLoopResult& result);
 
