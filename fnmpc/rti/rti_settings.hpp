@@ -22,7 +22,7 @@ struct RtiSettings {
   double cpu_budget = 0.05;          ///< [s] later calls stop iterating past this CPU time
   double soft_linear_weight = 1e4;   ///< L1 penalty on the per-stage slack of soft bounds
   double soft_quadratic_weight = 1e2;  ///< L2 penalty on the same slack
-  /// Problems with nx <= 16 (Riccati condensing): after a step whose QP had no active
+  /// Problems with nx <= 32 (Riccati condensing: L, F2, the reduced followers): after a step whose QP had no active
   /// constraint, take the unconstrained Riccati step and skip condensing and the QP when
   /// it satisfies every bound (it is then the QP's solution). false: always condense and
   /// solve the QP. Both give the same iterates.

@@ -478,8 +478,9 @@ class RtiSolver {
  private:
   // Small nx: Riccati condensing straight into the Cholesky factor of the Hessian (the
   // QP then skips its factorisation). Large nx: the Hessian by sparse backward sweeps
-  // (a dense nx x nx Riccati matrix would fill the follower models' sparse blocks).
-  static constexpr bool kRiccatiCondensing = kNx <= 16;
+  // (the dense nx x nx Riccati matrix costs O(nx^2) per structural nonzero of A_k: F2,
+  // nx = 22, is faster with Riccati, F6, nx = 54, slower; docs/benchmarks.md).
+  static constexpr bool kRiccatiCondensing = kNx <= 32;
 
   // Position of u_k in the QP variables: last stage first, so that the Riccati recursion
   // (which eliminates u_{N-1} first) gives a lower-triangular factor. Slacks come after.
@@ -723,7 +724,8 @@ class RtiSolver {
     if constexpr (kStructuredA) {
       Model::MultiplyTransitionTransposed(a_[k], in, out);
     } else {
-      out->noalias() = a_[k].transpose() * in;
+      out->setZero();
+      a_pattern_.AddTransposedProduct(a_[k], in, out);
     }
   }
   // out = in A_k.
@@ -732,7 +734,7 @@ class RtiSolver {
     if constexpr (kStructuredA) {
       Model::MultiplyTransitionRight(in, a_[k], out);
     } else {
-      out->noalias() = in * a_[k];
+      a_pattern_.MultiplyRight(in, a_[k], out);
     }
   }
   template <class In, class Out>

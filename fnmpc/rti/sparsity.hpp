@@ -56,6 +56,12 @@ class SparsityPattern {
   void AddProduct(const M& m, const In& in, Out* out) const {
     for (const Entry& e : entries_) out->row(e.row) += m(e.row, e.col) * in.row(e.col);
   }
+  /// out = in * m (out must not alias in): column updates, contiguous for column-major.
+  template <class M, class In, class Out>
+  void MultiplyRight(const In& in, const M& m, Out* out) const {
+    out->setZero();
+    for (const Entry& e : entries_) out->col(e.col) += m(e.row, e.col) * in.col(e.row);
+  }
   /// True when every structural entry of m is finite.
   template <class M>
   [[nodiscard]] bool AllFinite(const M& m) const {

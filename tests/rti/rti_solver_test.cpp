@@ -172,7 +172,7 @@ TEST(RtiClosedLoopTest, AggressiveScenarioRespectsBounds) {
 }
 
 TEST(RtiClosedLoopTest, UnconstrainedShortcutGivesTheSameLoop) {
-  for (ProblemId p : {ProblemId::kL, ProblemId::kF2Reduced}) {
+  for (ProblemId p : {ProblemId::kL, ProblemId::kF2, ProblemId::kF2Reduced}) {
     for (Scenario sc : {Scenario::kNominal, Scenario::kAggressive}) {
       // Given: the same closed loop with and without the unconstrained Riccati step
       RtiSettings off = SpecSettings();
