@@ -124,11 +124,9 @@ class RtiSolver {
     lambda_.assign(n_ + 1, X::Zero());
     mu_.assign(n_ + 1, X::Zero());
     k_gain_.assign(n_, Mat<kNu, kNx>::Zero());
-    if constexpr (kRiccatiCondensing) {
-      p_mat_.assign(n_ + 1, MX::Zero());
-      l_diag_.assign(n_, Mat<kNu, kNu>::Identity());
-      kt_vec_.assign(n_, U::Zero());
-    }
+    if constexpr (kRiccatiCondensing) p_mat_.assign(n_ + 1, MX::Zero());
+    l_diag_.assign(n_, Mat<kNu, kNu>::Identity());
+    kt_vec_.assign(n_, U::Zero());
     g_.assign(static_cast<std::size_t>(n_) * (n_ + 1) / 2, MU::Zero());
     qp_ = qp::DenseQp({nz_, nc_});
     qp_solution_ = qp::QpSolution({nz_, nc_});
@@ -136,7 +134,6 @@ class RtiSolver {
     qp_.A.setZero();
     qp_.H.setZero();
     qp_.L.setZero();
-    qp_.h_factor_given = kRiccatiCondensing;
     if (nsl_ > 0) {
       const int nv = n_ * kNu;
       const qp::DenseQpDims hard{nv, nc_};
@@ -146,7 +143,6 @@ class RtiSolver {
       qp_no_slack_.A.setZero();
       qp_no_slack_.H.setZero();
       qp_no_slack_.L.setZero();
-      qp_no_slack_.h_factor_given = kRiccatiCondensing;
       // The slack part of the soft QP never changes.
       for (int s = 0; s < nsl_; ++s) {
         qp_.H(nv + s, nv + s) = settings_.soft_quadratic_weight;
@@ -240,8 +236,12 @@ class RtiSolver {
                                                         qn_pattern_, n_);
       finite = finite && q_vec_[n_].allFinite();
     }
-    if constexpr (kRiccatiCondensing) {
-      Riccati();
+    if (riccati_) {
+      if (compact_) {
+        RiccatiCompact();
+      } else {
+        Riccati();
+      }
       // Condensing for the QP is done now (outside the feedback latency) unless the last
       // step took the unconstrained Riccati step: then it is likely to do so again, and
       // Feedback condenses only if the step violates a bound.
@@ -481,6 +481,15 @@ class RtiSolver {
   // (the dense nx x nx Riccati matrix costs O(nx^2) per structural nonzero of A_k: F2,
   // nx = 22, is faster with Riccati, F6, nx = 54, slower; docs/benchmarks.md).
   static constexpr bool kRiccatiCondensing = kNx <= 32;
+  // Larger nx: when the states that can influence the cost (cost rows, closed under the
+  // dynamics' couplings) are at most kMaxCompact, the Riccati recursion runs on them only:
+  // the others have zero rows and columns in P_k and zero columns in Kt_k (F6: its four
+  // static neighbours have zero weight, which leaves 22 of 54 states).
+  static constexpr int kMaxCompact = 32;
+  using MC = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxCompact, kMaxCompact>;
+  using VC = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxCompact, 1>;
+  using UC = Eigen::Matrix<double, kNu, Eigen::Dynamic, 0, kNu, kMaxCompact>;
+  using BC = Eigen::Matrix<double, Eigen::Dynamic, kNu, 0, kMaxCompact, kNu>;
 
   // Position of u_k in the QP variables: last stage first, so that the Riccati recursion
   // (which eliminates u_{N-1} first) gives a lower-triangular factor. Slacks come after.
@@ -539,7 +548,7 @@ class RtiSolver {
     qp_.ub.head(nv) = hard.ub;
     qp_.lbA = hard.lbA;
     qp_.ubA = hard.ubA;
-    if constexpr (kRiccatiCondensing) {
+    if (riccati_) {
       qp_.L.topLeftCorner(nv, nv) = hard.L;
     } else {
       qp_.H.topLeftCorner(nv, nv) = hard.H;
@@ -556,7 +565,7 @@ class RtiSolver {
       G(j, j) = b_[j];
       for (int k = j + 1; k < n_; ++k) MultiplyA(k, G(k - 1, j), &G(k, j));
     }
-    if constexpr (kRiccatiCondensing) {
+    if (riccati_) {
       // Cholesky factor of the condensed Hessian from the Riccati recursion (Riccati()):
       // with the inputs ordered last stage first, it has the diagonal blocks L_k and
       // below them (Kt_k G(k-1, j))' for j < k, since eliminating u_N-1 first is one
@@ -635,6 +644,56 @@ class RtiSolver {
     }
   }
 
+  // Riccati() on the cost-relevant states rel_ (kMaxCompact at most): the same recursion
+  // with A_k, B_k, Q_k, S_k restricted to them; Kt_k is scattered back (zero elsewhere).
+  void RiccatiCompact() {
+    riccati_ok_ = true;
+    const int nr = nr_;
+    const auto gather_q = [&](const MX& q, MC* out) {
+      for (int i = 0; i < nr; ++i) {
+        for (int j = 0; j < nr; ++j) (*out)(i, j) = q(rel_[i], rel_[j]);
+      }
+    };
+    gather_q(q_mat_[n_], &pc_mat_[n_]);
+    for (int k = n_ - 1; k >= 0; --k) {
+      const MC& p = pc_mat_[k + 1];
+      for (std::size_t e = 0; e < ac_full_.size(); ++e) {
+        const auto& c = ac_pattern_.entries()[e];
+        ac_(c.row, c.col) = a_[k](ac_full_[e].row, ac_full_[e].col);
+      }
+      BC bc(nr, kNu);
+      UC sc(kNu, nr);
+      for (int i = 0; i < nr; ++i) {
+        bc.row(i) = b_[k].row(rel_[i]);
+        sc.col(i) = s_mat_[k].col(rel_[i]);
+      }
+      const UC bp = bc.transpose().lazyProduct(p);
+      Mat<kNu, kNu> rbar = r_mat_[k];
+      rbar += bp.lazyProduct(bc);
+      UC bpa(kNu, nr);
+      ac_pattern_.MultiplyRight(bp, ac_, &bpa);
+      const UC sbar = sc + bpa;
+      const Eigen::LLT<Mat<kNu, kNu>> llt(rbar);
+      UC kt(kNu, nr);
+      if (llt.info() == Eigen::Success) {
+        l_diag_[k] = llt.matrixL();
+        ForwardSubstitute(l_diag_[k], sbar, &kt);
+      } else {
+        l_diag_[k].setZero();
+        kt.setZero();
+        riccati_ok_ = false;
+      }
+      k_gain_[k].setZero();
+      for (int i = 0; i < nr; ++i) k_gain_[k].col(rel_[i]) = kt.col(i);
+      MC pa(nr, nr);
+      ac_pattern_.MultiplyRight(p, ac_, &pa);
+      MC& pk = pc_mat_[k];
+      gather_q(q_mat_[k], &pk);
+      ac_pattern_.AddTransposedProduct(ac_, pa, &pk);
+      pk -= kt.transpose().lazyProduct(kt);
+    }
+  }
+
   // out = l^-1 in for a lower-triangular kNu x kNu l (Eigen's triangular solve for a
   // matrix right-hand side goes through its blocked GEMM kernel).
   template <class In, class Out>
@@ -652,14 +711,19 @@ class RtiSolver {
   // O(N nx^2), no condensing. Writes dx_, du_ and, when it returns true (finite and every
   // input and state bound satisfied, soft ones as hard), qp_solution_ as the QP's.
   bool TryUnconstrainedStep(const X& x0) {
-    if constexpr (!kRiccatiCondensing) {
-      return false;
-    } else {
-      if (!riccati_ok_) return false;
+    {
+      if (!riccati_ || !riccati_ok_) return false;
       X p = q_vec_[n_];
       for (int k = n_ - 1; k >= 0; --k) {
         X w = p;
-        w.noalias() += p_mat_[k + 1] * d_[k];
+        if (compact_) {
+          VC dc(nr_);
+          for (int i = 0; i < nr_; ++i) dc[i] = d_[k][rel_[i]];
+          const VC pd = pc_mat_[k + 1].lazyProduct(dc);
+          for (int i = 0; i < nr_; ++i) w[rel_[i]] += pd[i];
+        } else if constexpr (kRiccatiCondensing) {
+          w.noalias() += p_mat_[k + 1] * d_[k];
+        }
         U r = r_vec_[k];
         AddBTransposed(k, w, &r);
         ForwardSubstitute(l_diag_[k], r, &kt_vec_[k]);
@@ -847,9 +911,58 @@ class RtiSolver {
     q_pattern_.SetFromMask(q);
     qn_pattern_.SetFromMask(qn);
     s_pattern_.SetFromMask(sm);
+    FindCostRelevantStates(q, qn, sm);
     // Entries outside the new patterns must read as zero in the dense copies.
     for (auto& m : q_mat_) m.setZero();
     for (auto& m : s_mat_) m.setZero();
+  }
+
+  // rel_: the states that can influence the cost (rows of Q_k, Q_N and columns of S_k,
+  // closed under A_k: a state entering the dynamics of a relevant one is relevant); the
+  // rest never reaches the Riccati matrices. Chooses the condensing (riccati_, compact_).
+  template <class QMask, class SMask>
+  void FindCostRelevantStates(const QMask& q, const QMask& qn, const SMask& sm) {
+    std::vector<char> in(kNx, 0);
+    for (int i = 0; i < kNx; ++i) {
+      in[i] = static_cast<char>(q.row(i).any() || qn.row(i).any() || sm.col(i).any());
+    }
+    for (bool changed = true; changed;) {
+      changed = false;
+      for (const auto& e : a_pattern_.entries()) {
+        if (in[e.row] && !in[e.col]) {
+          in[e.col] = 1;
+          changed = true;
+        }
+      }
+    }
+    rel_.clear();
+    std::vector<int> pos(kNx, -1);
+    for (int i = 0; i < kNx; ++i) {
+      if (in[i]) {
+        pos[i] = static_cast<int>(rel_.size());
+        rel_.push_back(i);
+      }
+    }
+    nr_ = static_cast<int>(rel_.size());
+    riccati_ = kRiccatiCondensing || nr_ <= kMaxCompact;
+    compact_ = !kRiccatiCondensing && riccati_;
+    if (compact_) {
+      Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic> mask =
+          Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic>::Constant(nr_, nr_, false);
+      for (const auto& e : a_pattern_.entries()) {
+        if (in[e.row]) mask(pos[e.row], pos[e.col]) = true;
+      }
+      ac_pattern_.Reserve(nr_, nr_);
+      ac_pattern_.SetFromMask(mask);
+      ac_full_.clear();
+      for (const auto& e : ac_pattern_.entries()) ac_full_.push_back({rel_[e.row], rel_[e.col]});
+      ac_ = MC::Zero(nr_, nr_);
+      pc_mat_.assign(n_ + 1, MC::Zero(nr_, nr_));
+    }
+    qp_.h_factor_given = riccati_;
+    if (nsl_ > 0) qp_no_slack_.h_factor_given = riccati_;
+    condensed_ = false;
+    last_qp_active_ = true;
   }
 
   Problem problem_;
@@ -903,6 +1016,14 @@ class RtiSolver {
   std::vector<Mat<kNu, kNu>> l_diag_;
   std::vector<U> kt_vec_;
   bool riccati_ok_ = false;
+  bool riccati_ = kRiccatiCondensing;  // Riccati condensing (factor) instead of the Hessian
+  bool compact_ = false;               // Riccati on the cost-relevant states rel_ only
+  std::vector<int> rel_;
+  int nr_ = kNx;
+  SparsityPattern ac_pattern_;  // A_k on rel_ x rel_ (compact indices)
+  std::vector<SparsityPattern::Entry> ac_full_;  // the same entries, full indices
+  MC ac_;
+  std::vector<MC> pc_mat_;  // compact P_k
   bool condensed_ = false;
   bool last_qp_active_ = true;
 };

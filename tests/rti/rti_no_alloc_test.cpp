@@ -82,6 +82,13 @@ TEST(RtiNoAllocTest, FollowerStepsDoNotAllocate) {
   solver.Step(FollowerState<2>(Vec<6>::Zero(), nb), &u);
   auto reduced = MakeReducedFollowerSolver<2>(Vec<6>::Zero(), nb);
   reduced.Step(SetReducedFollowerStage<2>(&reduced, Vec<6>::Zero(), nb), &u);
+  // F6: the Riccati recursion on its cost-relevant states (compact matrices)
+  std::array<NeighbourState, 6> nb6{};
+  for (int j = 0; j < 6; ++j) nb6[j] = NeighbourState{Vec3(0.5 * j, 1.0, 0.0), Vec3::Zero()};
+  nb6[0] = nb[0];
+  nb6[1] = nb[1];
+  auto six = MakeFollowerSolver<6>(Vec<6>::Zero(), nb6);
+  six.Step(FollowerState<6>(Vec<6>::Zero(), nb6), &u);
   g_allocations = 0;
   g_counting = true;
   for (int k = 1; k < 30; ++k) {
@@ -89,6 +96,8 @@ TEST(RtiNoAllocTest, FollowerStepsDoNotAllocate) {
     solver.Step(FollowerState<2>(Vec<6>::Zero(), nb), &u);
     reduced.Shift();
     reduced.Step(SetReducedFollowerStage<2>(&reduced, Vec<6>::Zero(), nb), &u);
+    six.Shift();
+    six.Step(FollowerState<6>(Vec<6>::Zero(), nb6), &u);
   }
   g_counting = false;
   EXPECT_EQ(g_allocations.load(), 0);

@@ -172,7 +172,7 @@ TEST(RtiClosedLoopTest, AggressiveScenarioRespectsBounds) {
 }
 
 TEST(RtiClosedLoopTest, UnconstrainedShortcutGivesTheSameLoop) {
-  for (ProblemId p : {ProblemId::kL, ProblemId::kF2, ProblemId::kF2Reduced}) {
+  for (ProblemId p : {ProblemId::kL, ProblemId::kF2, ProblemId::kF6, ProblemId::kF2Reduced}) {
     for (Scenario sc : {Scenario::kNominal, Scenario::kAggressive}) {
       // Given: the same closed loop with and without the unconstrained Riccati step
       RtiSettings off = SpecSettings();
@@ -206,10 +206,18 @@ TEST(RtiClosedLoopTest, UnconstrainedShortcutGivesTheSameLoop) {
 TEST(RtiClosedLoopTest, ReducedAndFullFollowersFlyTheSameLoop) {
   // Same discretisation and optimum: the closed loops agree (not bit for bit: the
   // RTI iterates differ in how neighbour states enter the guess).
-  const auto full = RunClosedLoop(ProblemId::kF2, Scenario::kNominal, 200);
-  const auto reduced = RunClosedLoop(ProblemId::kF2Reduced, Scenario::kNominal, 200);
-  for (std::size_t k = 0; k < full.steps.size(); ++k) {
-    EXPECT_NEAR(full.steps[k].error_m, reduced.steps[k].error_m, 1e-6) << "step " << k;
+  // F6 runs the Riccati recursion on its 22 cost-relevant states only (its four static
+  // neighbours have zero weight), F2 on all 22, the reduced ones on 9.
+  for (const auto& [f, r] : {std::pair{ProblemId::kF2, ProblemId::kF2Reduced},
+                             std::pair{ProblemId::kF6, ProblemId::kF6Reduced}}) {
+    for (Scenario sc : {Scenario::kNominal, Scenario::kAggressive}) {
+      const auto full = RunClosedLoop(f, sc, 200);
+      const auto reduced = RunClosedLoop(r, sc, 200);
+      for (std::size_t k = 0; k < full.steps.size(); ++k) {
+        EXPECT_NEAR(full.steps[k].error_m, reduced.steps[k].error_m, 1e-6)
+            << ToString(f) << " step " << k;
+      }
+    }
   }
 }
 
