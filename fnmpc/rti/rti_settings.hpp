@@ -22,10 +22,10 @@ struct RtiSettings {
   double cpu_budget = 0.05;          ///< [s] later calls stop iterating past this CPU time
   double soft_linear_weight = 1e4;   ///< L1 penalty on the per-stage slack of soft bounds
   double soft_quadratic_weight = 1e2;  ///< L2 penalty on the same slack
-  /// Problems with nx <= 32 (Riccati condensing: L, F2, the reduced followers): after a step whose QP had no active
-  /// constraint, take the unconstrained Riccati step and skip condensing and the QP when
-  /// it satisfies every bound (it is then the QP's solution). false: always condense and
-  /// solve the QP. Both give the same iterates.
+  /// With Riccati condensing (nx <= 32 or at most 32 cost-relevant states; every benchmark
+  /// problem): after a step whose QP had no active constraint, take the unconstrained
+  /// Riccati step and skip condensing and the QP when it satisfies every bound (it is then
+  /// the QP's solution). false: always condense and solve the QP. Same iterates either way.
   bool unconstrained_shortcut = true;
   qp::QpSettings qp;                 ///< settings of the QP solver
 
