@@ -128,7 +128,8 @@ void QuadrotorModel::MultiplyTransitionTransposed(const Mat<kNx, kNx>& a, const 
   const double dt = a(kPos, kVel);
   const auto pos = in.template middleRows<3>(kPos);
   const auto vel = in.template middleRows<3>(kVel);
-  out->template middleRows<3>(kPhi) = a.diagonal().tail<3>().asDiagonal() * in.template middleRows<3>(kPhi);
+  out->template middleRows<3>(kPhi) =
+      a.diagonal().tail<3>().asDiagonal() * in.template middleRows<3>(kPhi);
   out->template middleRows<3>(kPhi).noalias() += a.block<3, 3>(kPos, kPhi).transpose() * pos;
   out->template middleRows<3>(kPhi).noalias() += a.block<3, 3>(kVel, kPhi).transpose() * vel;
   out->template middleRows<3>(kVel) = vel + dt * pos;

@@ -73,17 +73,16 @@ template <class Model, class = void>
 struct HasStructuredDiscretisation : std::false_type {};
 template <class Model>
 struct HasStructuredDiscretisation<
-    Model, std::void_t<decltype(Model::Discretise(
-               std::declval<const Vec<Model::kNx>&>(), std::declval<const Vec<Model::kNu>&>(),
-               0.0, std::declval<const AttitudeModelParams&>(), 0.0, 1,
-               std::declval<Mat<Model::kNx, Model::kNx>*>(),
-               std::declval<Mat<Model::kNx, Model::kNu>*>()))>>
-    : std::is_same<decltype(Model::Discretise(
-                       std::declval<const Vec<Model::kNx>&>(),
-                       std::declval<const Vec<Model::kNu>&>(), 0.0,
-                       std::declval<const AttitudeModelParams&>(), 0.0, 1,
-                       std::declval<Mat<Model::kNx, Model::kNx>*>(),
-                       std::declval<Mat<Model::kNx, Model::kNu>*>())),
+    Model, std::void_t<decltype(Model::Discretise(std::declval<const Vec<Model::kNx>&>(),
+                                                  std::declval<const Vec<Model::kNu>&>(), 0.0,
+                                                  std::declval<const AttitudeModelParams&>(), 0.0,
+                                                  1, std::declval<Mat<Model::kNx, Model::kNx>*>(),
+                                                  std::declval<Mat<Model::kNx, Model::kNu>*>()))>>
+    : std::is_same<decltype(Model::Discretise(std::declval<const Vec<Model::kNx>&>(),
+                                              std::declval<const Vec<Model::kNu>&>(), 0.0,
+                                              std::declval<const AttitudeModelParams&>(), 0.0, 1,
+                                              std::declval<Mat<Model::kNx, Model::kNx>*>(),
+                                              std::declval<Mat<Model::kNx, Model::kNu>*>())),
                    Vec<Model::kNx>> {};
 
 /// The RK4 interval map of Rk4 with its sensitivities A and B, by the model's structured

@@ -219,9 +219,9 @@ DenseQpSolver::Workspace::Workspace(const DenseQpDims& dims, const QpSettings& s
 }
 
 QpStatus DenseQpSolver::Workspace::Validate(const DenseQp& qp) const {
-  if ((!qp.h_factor_given && (qp.H.rows() != nv || qp.H.cols() != nv)) || qp.g.size() != nv || qp.A.rows() != nc ||
-      (nc > 0 && qp.A.cols() != nv) || qp.lb.size() != nv || qp.ub.size() != nv ||
-      qp.lbA.size() != nc || qp.ubA.size() != nc) {
+  if ((!qp.h_factor_given && (qp.H.rows() != nv || qp.H.cols() != nv)) || qp.g.size() != nv ||
+      qp.A.rows() != nc || (nc > 0 && qp.A.cols() != nv) || qp.lb.size() != nv ||
+      qp.ub.size() != nv || qp.lbA.size() != nc || qp.ubA.size() != nc) {
     return QpStatus::kInvalidInput;
   }
   // Fast path: a vectorised sum is finite iff no entry is NaN/Inf (barring overflow,

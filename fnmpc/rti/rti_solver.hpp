@@ -23,22 +23,23 @@ namespace fnmpc::rti {
 
 namespace detail {
 /// Models with structured products with their transition matrix (Model::MultiplyTransition,
-/// MultiplyTransitionRight and MultiplyTransitionTransposed, see QuadrotorModel). A detection trait: the ROS nodes
-/// include this header from C++17 units.
+/// MultiplyTransitionRight and MultiplyTransitionTransposed, see QuadrotorModel). A detection
+/// trait: the ROS nodes include this header from C++17 units.
 template <class Model, class = void>
 struct HasStructuredTransition : std::false_type {};
 template <class Model>
 struct HasStructuredTransition<
-    Model, std::void_t<decltype(Model::MultiplyTransition(
-                           std::declval<const Mat<Model::kNx, Model::kNx>&>(),
-                           std::declval<const Vec<Model::kNx>&>(), std::declval<Vec<Model::kNx>*>())),
-                       decltype(Model::MultiplyTransitionRight(
-                           std::declval<const Mat<1, Model::kNx>&>(),
-                           std::declval<const Mat<Model::kNx, Model::kNx>&>(),
-                           std::declval<Mat<1, Model::kNx>*>())),
-                       decltype(Model::MultiplyTransitionTransposed(
-                           std::declval<const Mat<Model::kNx, Model::kNx>&>(),
-                           std::declval<const Vec<Model::kNx>&>(), std::declval<Vec<Model::kNx>*>()))>>
+    Model,
+    std::void_t<decltype(Model::MultiplyTransition(
+                    std::declval<const Mat<Model::kNx, Model::kNx>&>(),
+                    std::declval<const Vec<Model::kNx>&>(), std::declval<Vec<Model::kNx>*>())),
+                decltype(Model::MultiplyTransitionRight(
+                    std::declval<const Mat<1, Model::kNx>&>(),
+                    std::declval<const Mat<Model::kNx, Model::kNx>&>(),
+                    std::declval<Mat<1, Model::kNx>*>())),
+                decltype(Model::MultiplyTransitionTransposed(
+                    std::declval<const Mat<Model::kNx, Model::kNx>&>(),
+                    std::declval<const Vec<Model::kNx>&>(), std::declval<Vec<Model::kNx>*>()))>>
     : std::true_type {};
 }  // namespace detail
 
@@ -1020,7 +1021,7 @@ class RtiSolver {
   bool compact_ = false;               // Riccati on the cost-relevant states rel_ only
   std::vector<int> rel_;
   int nr_ = kNx;
-  SparsityPattern ac_pattern_;  // A_k on rel_ x rel_ (compact indices)
+  SparsityPattern ac_pattern_;                   // A_k on rel_ x rel_ (compact indices)
   std::vector<SparsityPattern::Entry> ac_full_;  // the same entries, full indices
   MC ac_;
   std::vector<MC> pc_mat_;  // compact P_k
