@@ -18,14 +18,23 @@ Eigen::Matrix<S, 3, 1> BodyZ(const S& phi, const S& theta, const S& psi) {
   return {cpsi * sth * cphi + spsi * sphi, spsi * sth * cphi - cpsi * sphi, cth * cphi};
 }
 
-/// Partial derivatives of BodyZ with respect to (phi, theta, psi), as columns.
-inline Eigen::Matrix3d BodyZJacobian(double phi, double theta, double psi) {
+/// BodyZ and its partial derivatives with respect to (phi, theta, psi) (columns of *dz)
+/// from one evaluation of the six sines and cosines.
+inline void BodyZAndJacobian(double phi, double theta, double psi, Eigen::Vector3d* z,
+                             Eigen::Matrix3d* dz) {
   const double cphi = std::cos(phi), sphi = std::sin(phi), cth = std::cos(theta),
                sth = std::sin(theta), cpsi = std::cos(psi), spsi = std::sin(psi);
-  Eigen::Matrix3d J;
-  J << -cpsi * sth * sphi + spsi * cphi, cpsi * cth * cphi, -spsi * sth * cphi + cpsi * sphi,
+  *z << cpsi * sth * cphi + spsi * sphi, spsi * sth * cphi - cpsi * sphi, cth * cphi;
+  *dz << -cpsi * sth * sphi + spsi * cphi, cpsi * cth * cphi, -spsi * sth * cphi + cpsi * sphi,
       -spsi * sth * sphi - cpsi * cphi, spsi * cth * cphi, cpsi * sth * cphi + spsi * sphi,
       -cth * sphi, -sth * cphi, 0.0;
+}
+
+/// Partial derivatives of BodyZ with respect to (phi, theta, psi), as columns.
+inline Eigen::Matrix3d BodyZJacobian(double phi, double theta, double psi) {
+  Eigen::Vector3d z;
+  Eigen::Matrix3d J;
+  BodyZAndJacobian(phi, theta, psi, &z, &J);
   return J;
 }
 

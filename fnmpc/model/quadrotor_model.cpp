@@ -9,9 +9,10 @@ OwnDynamicsJacobian OwnDynamicsJacobian::At(double phi, double theta, double psi
                                             double psi_ref, const AttitudeModelParams& m) {
   OwnDynamicsJacobian j;
   const double t_over_m = u[0] / m.mass;
-  const Vec3 z = BodyZ(phi, theta, psi);
+  Vec3 z;
+  BodyZAndJacobian(phi, theta, psi, &z, &j.dv_dangles);
   j.vdot = z * t_over_m - Vec3(0, 0, kGravity);
-  j.dv_dangles = BodyZJacobian(phi, theta, psi) * t_over_m;
+  j.dv_dangles *= t_over_m;
   j.dv_dthrust = z / m.mass;
   j.dangle_dangle = -m.time_constant.cwiseInverse();
   j.dangle_dref = m.gain.cwiseQuotient(m.time_constant);
@@ -61,14 +62,13 @@ OwnInterval OwnInterval::Integrate(const Vec3& v0, const Vec3& angles0, const Ve
     Mat<3, kCols> dv, dkv;
   };
   const auto eval = [&](const Vec3& a, const Vec3& al, const Eigen::Vector2d& be, Stage* s) {
-    const double cphi = std::cos(a[0]), sphi = std::sin(a[0]), cth = std::cos(a[1]),
-                 sth = std::sin(a[1]), cpsi = std::cos(a[2]), spsi = std::sin(a[2]);
-    // z = R e3 and its derivatives by (phi, theta, psi), as in BodyZ / BodyZJacobian.
-    const Vec3 z(cpsi * sth * cphi + spsi * sphi, spsi * sth * cphi - cpsi * sphi, cth * cphi);
-    const Vec3 zphi(-cpsi * sth * sphi + spsi * cphi, -spsi * sth * sphi - cpsi * cphi,
-                    -cth * sphi);
-    const Vec3 zth(cpsi * cth * cphi, spsi * cth * cphi, -sth * cphi);
-    const Vec3 zpsi(-spsi * sth * cphi + cpsi * sphi, cpsi * sth * cphi + spsi * sphi, 0.0);
+    // z = R e3 and its derivatives by (phi, theta, psi).
+    Vec3 z;
+    Mat3 dz;
+    BodyZAndJacobian(a[0], a[1], a[2], &z, &dz);
+    const auto zphi = dz.col(0);
+    const auto zth = dz.col(1);
+    const auto zpsi = dz.col(2);
     s->kv = z * t_over_m;
     s->kv[2] -= kGravity;
     s->ka = (target - a).cwiseProduct(inv_tau);

@@ -69,21 +69,16 @@ Vec<Model::kNx> Rk4(const Vec<Model::kNx>& x0, const Vec<Model::kNu>& u, double 
 /// (QuadrotorModel, FollowerModel): Model::Discretise. A detection trait, not a concept,
 /// because the ROS nodes include this header from C++17 translation units (ROS 1's message
 /// headers do not compile as C++20).
+template <class Model>
+using DiscretiseResult = decltype(Model::Discretise(
+    std::declval<const Vec<Model::kNx>&>(), std::declval<const Vec<Model::kNu>&>(), 0.0,
+    std::declval<const AttitudeModelParams&>(), 0.0, 1,
+    std::declval<Mat<Model::kNx, Model::kNx>*>(), std::declval<Mat<Model::kNx, Model::kNu>*>()));
 template <class Model, class = void>
 struct HasStructuredDiscretisation : std::false_type {};
 template <class Model>
-struct HasStructuredDiscretisation<
-    Model, std::void_t<decltype(Model::Discretise(std::declval<const Vec<Model::kNx>&>(),
-                                                  std::declval<const Vec<Model::kNu>&>(), 0.0,
-                                                  std::declval<const AttitudeModelParams&>(), 0.0,
-                                                  1, std::declval<Mat<Model::kNx, Model::kNx>*>(),
-                                                  std::declval<Mat<Model::kNx, Model::kNu>*>()))>>
-    : std::is_same<decltype(Model::Discretise(std::declval<const Vec<Model::kNx>&>(),
-                                              std::declval<const Vec<Model::kNu>&>(), 0.0,
-                                              std::declval<const AttitudeModelParams&>(), 0.0, 1,
-                                              std::declval<Mat<Model::kNx, Model::kNx>*>(),
-                                              std::declval<Mat<Model::kNx, Model::kNu>*>())),
-                   Vec<Model::kNx>> {};
+struct HasStructuredDiscretisation<Model, std::void_t<DiscretiseResult<Model>>>
+    : std::is_same<DiscretiseResult<Model>, Vec<Model::kNx>> {};
 
 /// The RK4 interval map of Rk4 with its sensitivities A and B, by the model's structured
 /// Discretise when it has one (then only the structural nonzeros of A and B are written:

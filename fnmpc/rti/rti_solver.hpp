@@ -270,10 +270,7 @@ class RtiSolver {
     } else if (!condensed_ && TryUnconstrainedStep(x0)) {
       // The unconstrained minimiser of the QP satisfies every bound: it is the QP's
       // solution, with no active constraint.
-      for (int k = 0; k <= n_; ++k) x_[k] += dx_[k];
-      for (int k = 0; k < n_; ++k) u_[k] += du_[k];
-      x_[0] = x0;
-      has_multipliers_ = true;
+      ApplyStep(x0);
       last_qp_active_ = false;
       stats_.qp_status = qp::QpStatus::kOptimal;
       stats_.unconstrained_step = true;
@@ -338,10 +335,7 @@ class RtiSolver {
         if (!finite) {
           status = RtiStatus::kNanDetected;
         } else {
-          for (int k = 0; k <= n_; ++k) x_[k] += dx_[k];
-          for (int k = 0; k < n_; ++k) u_[k] += du_[k];
-          x_[0] = x0;
-          has_multipliers_ = true;
+          ApplyStep(x0);
         }
       }
     }
@@ -540,6 +534,14 @@ class RtiSolver {
     return true;
   }
 
+  // Iterate update by the step (dx_, du_) of the last QP, with the measured x0 embedded.
+  void ApplyStep(const X& x0) {
+    for (int k = 0; k <= n_; ++k) x_[k] += dx_[k];
+    for (int k = 0; k < n_; ++k) u_[k] += du_[k];
+    x_[0] = x0;
+    has_multipliers_ = true;
+  }
+
   // The soft QP from the hard one (its slack part is set in the constructor).
   void FillSoftQp() {
     const int nv = n_ * kNu;
@@ -614,8 +616,7 @@ class RtiSolver {
 
   // Riccati recursion P_N = Q_N, Rbar_k = R_k + B_k' P_k+1 B_k = L_k L_k',
   // Kt_k = L_k^-1 (S_k + B_k' P_k+1 A_k), P_k = Q_k + A_k' P_k+1 A_k - Kt_k' Kt_k:
-  // O(N nx^3). A Rbar_k that is not positive definite leaves L_k = 0 (the QP then
-  // reports kNotConvex) and riccati_ok_ false.
+  // O(N nx^3); FactorStage handles an Rbar_k that is not positive definite.
   void Riccati() {
     riccati_ok_ = true;
     p_mat_[n_] = q_mat_[n_];
@@ -627,16 +628,8 @@ class RtiSolver {
       Mat<kNu, kNx> bpa;
       MultiplyARight(k, bp, &bpa);
       const Mat<kNu, kNx> sbar = s_mat_[k] + bpa;
-      const Eigen::LLT<Mat<kNu, kNu>> llt(rbar);
       Mat<kNu, kNx>& kt = k_gain_[k];
-      if (llt.info() == Eigen::Success) {
-        l_diag_[k] = llt.matrixL();
-        ForwardSubstitute(l_diag_[k], sbar, &kt);
-      } else {
-        l_diag_[k].setZero();
-        kt.setZero();
-        riccati_ok_ = false;
-      }
+      FactorStage(k, rbar, sbar, &kt);
       MX pa, apa;
       MultiplyARight(k, p, &pa);
       MultiplyATransposed(k, pa, &apa);
@@ -674,16 +667,8 @@ class RtiSolver {
       UC bpa(kNu, nr);
       ac_pattern_.MultiplyRight(bp, ac_, &bpa);
       const UC sbar = sc + bpa;
-      const Eigen::LLT<Mat<kNu, kNu>> llt(rbar);
       UC kt(kNu, nr);
-      if (llt.info() == Eigen::Success) {
-        l_diag_[k] = llt.matrixL();
-        ForwardSubstitute(l_diag_[k], sbar, &kt);
-      } else {
-        l_diag_[k].setZero();
-        kt.setZero();
-        riccati_ok_ = false;
-      }
+      FactorStage(k, rbar, sbar, &kt);
       k_gain_[k].setZero();
       for (int i = 0; i < nr; ++i) k_gain_[k].col(rel_[i]) = kt.col(i);
       MC pa(nr, nr);
@@ -692,6 +677,22 @@ class RtiSolver {
       gather_q(q_mat_[k], &pk);
       ac_pattern_.AddTransposedProduct(ac_, pa, &pk);
       pk -= kt.transpose().lazyProduct(kt);
+    }
+  }
+
+  // One Riccati stage's factorisation: Rbar_k = L_k L_k' and Kt = L_k^-1 Sbar. A Rbar_k
+  // that is not positive definite leaves L_k = 0 and Kt = 0 (the QP then reports
+  // kNotConvex) and clears riccati_ok_.
+  template <class Sbar, class Kt>
+  void FactorStage(int k, const Mat<kNu, kNu>& rbar, const Sbar& sbar, Kt* kt) {
+    const Eigen::LLT<Mat<kNu, kNu>> llt(rbar);
+    if (llt.info() == Eigen::Success) {
+      l_diag_[k] = llt.matrixL();
+      ForwardSubstitute(l_diag_[k], sbar, kt);
+    } else {
+      l_diag_[k].setZero();
+      kt->setZero();
+      riccati_ok_ = false;
     }
   }
 
@@ -712,61 +713,59 @@ class RtiSolver {
   // O(N nx^2), no condensing. Writes dx_, du_ and, when it returns true (finite and every
   // input and state bound satisfied, soft ones as hard), qp_solution_ as the QP's.
   bool TryUnconstrainedStep(const X& x0) {
-    {
-      if (!riccati_ || !riccati_ok_) return false;
-      X p = q_vec_[n_];
-      for (int k = n_ - 1; k >= 0; --k) {
-        X w = p;
-        if (compact_) {
-          VC dc(nr_);
-          for (int i = 0; i < nr_; ++i) dc[i] = d_[k][rel_[i]];
-          const VC pd = pc_mat_[k + 1].lazyProduct(dc);
-          for (int i = 0; i < nr_; ++i) w[rel_[i]] += pd[i];
-        } else if constexpr (kRiccatiCondensing) {
-          w.noalias() += p_mat_[k + 1] * d_[k];
-        }
-        U r = r_vec_[k];
-        AddBTransposed(k, w, &r);
-        ForwardSubstitute(l_diag_[k], r, &kt_vec_[k]);
-        MultiplyATransposed(k, w, &p);
-        p += q_vec_[k];
-        p.noalias() -= k_gain_[k].transpose() * kt_vec_[k];
+    if (!riccati_ || !riccati_ok_) return false;
+    X p = q_vec_[n_];
+    for (int k = n_ - 1; k >= 0; --k) {
+      X w = p;
+      if (compact_) {
+        VC dc(nr_);
+        for (int i = 0; i < nr_; ++i) dc[i] = d_[k][rel_[i]];
+        const VC pd = pc_mat_[k + 1].lazyProduct(dc);
+        for (int i = 0; i < nr_; ++i) w[rel_[i]] += pd[i];
+      } else if constexpr (kRiccatiCondensing) {
+        w.noalias() += p_mat_[k + 1] * d_[k];
       }
-      dx_[0] = x0 - x_[0];
-      bool feasible = true;
-      for (int k = 0; k < n_; ++k) {
-        U v = kt_vec_[k];
-        v.noalias() += k_gain_[k] * dx_[k];
-        l_diag_[k].transpose().template triangularView<Eigen::Upper>().solveInPlace(v);
-        du_[k] = -v;
-        MultiplyA(k, dx_[k], &dx_[k + 1]);
-        AddB(k, du_[k], &dx_[k + 1]);
-        dx_[k + 1] += d_[k];
-        const U u_new = u_[k] + du_[k];
-        feasible = feasible && (u_new.array() >= lbu_[k].array()).all() &&
-                   (u_new.array() <= ubu_[k].array()).all();
-      }
-      for (int r = 0; r < nc_ && feasible; ++r) {
-        const Row& row = rows_[r];
-        const double v = x_[row.stage][row.index] + dx_[row.stage][row.index];
-        feasible = v >= lbx_[row.stage][row.index] && v <= ubx_[row.stage][row.index];
-      }
-      if (!feasible) return false;  // (also when NaN: comparisons with NaN are false)
-      for (int k = 0; k < n_; ++k) qp_solution_.x.template segment<kNu>(UPos(k)) = du_[k];
-      qp_solution_.x.tail(nsl_).setZero();
-      qp_solution_.y_bounds.setZero();
-      qp_solution_.y_constraints.setZero();
-      qp_solution_.iterations = 0;
-      qp_solution_.status = qp::QpStatus::kOptimal;
-      qp_solution_.objective = kNaN;  // not computed on this path
-      qp_solution_.num_active = 0;
-      qp_solution_.num_drops = 0;
-      qp_solution_.num_warm_start_adds = 0;
-      // What the active-set solvers would remember: an empty active set.
-      qp_solver_->ResetWarmStart();
-      if (qp_no_slack_solver_) qp_no_slack_solver_->ResetWarmStart();
-      return true;
+      U r = r_vec_[k];
+      AddBTransposed(k, w, &r);
+      ForwardSubstitute(l_diag_[k], r, &kt_vec_[k]);
+      MultiplyATransposed(k, w, &p);
+      p += q_vec_[k];
+      p.noalias() -= k_gain_[k].transpose() * kt_vec_[k];
     }
+    dx_[0] = x0 - x_[0];
+    bool feasible = true;
+    for (int k = 0; k < n_; ++k) {
+      U v = kt_vec_[k];
+      v.noalias() += k_gain_[k] * dx_[k];
+      l_diag_[k].transpose().template triangularView<Eigen::Upper>().solveInPlace(v);
+      du_[k] = -v;
+      MultiplyA(k, dx_[k], &dx_[k + 1]);
+      AddB(k, du_[k], &dx_[k + 1]);
+      dx_[k + 1] += d_[k];
+      const U u_new = u_[k] + du_[k];
+      feasible = feasible && (u_new.array() >= lbu_[k].array()).all() &&
+                 (u_new.array() <= ubu_[k].array()).all();
+    }
+    for (int r = 0; r < nc_ && feasible; ++r) {
+      const Row& row = rows_[r];
+      const double v = x_[row.stage][row.index] + dx_[row.stage][row.index];
+      feasible = v >= lbx_[row.stage][row.index] && v <= ubx_[row.stage][row.index];
+    }
+    if (!feasible) return false;  // (also when NaN: comparisons with NaN are false)
+    for (int k = 0; k < n_; ++k) qp_solution_.x.template segment<kNu>(UPos(k)) = du_[k];
+    qp_solution_.x.tail(nsl_).setZero();
+    qp_solution_.y_bounds.setZero();
+    qp_solution_.y_constraints.setZero();
+    qp_solution_.iterations = 0;
+    qp_solution_.status = qp::QpStatus::kOptimal;
+    qp_solution_.objective = kNaN;  // not computed on this path
+    qp_solution_.num_active = 0;
+    qp_solution_.num_drops = 0;
+    qp_solution_.num_warm_start_adds = 0;
+    // What the active-set solvers would remember: an empty active set.
+    qp_solver_->ResetWarmStart();
+    if (qp_no_slack_solver_) qp_no_slack_solver_->ResetWarmStart();
+    return true;
   }
 
   // Block G(k, j) = d x_{k+1} / d u_j (j <= k) of the condensed sensitivities.
@@ -867,6 +866,7 @@ class RtiSolver {
     ynx_buf_->setConstant(kNaN);
     problem_.StageResidual(X::Zero(), U::Zero(), P::Zero(), &y, yx_buf_.get(), yu_buf_.get());
     problem_.TerminalResidual(X::Zero(), P::Zero(), &yn, ynx_buf_.get());
+    // (x == x is false exactly for NaN: the entries written)
     const Eigen::Array<bool, kNy, kNx> yx_mask = yx_buf_->array() == yx_buf_->array();
     const Eigen::Array<bool, kNy, kNu> yu_mask = yu_buf_->array() == yu_buf_->array();
     const Eigen::Array<bool, kNyN, kNx> ynx_mask = ynx_buf_->array() == ynx_buf_->array();

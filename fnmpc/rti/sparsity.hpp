@@ -2,7 +2,6 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <cmath>
 #include <vector>
 
 /// Structural nonzeros of small matrices that are stored densely. The follower models'
@@ -16,17 +15,12 @@ class SparsityPattern {
   struct Entry {
     int row, col;
   };
-  /// Room for every entry of a rows x cols matrix, so that Rebuild never allocates.
+  /// Room for every entry of a rows x cols matrix, so that SetFromMask never allocates.
   void Reserve(int rows, int cols) { entries_.reserve(static_cast<std::size_t>(rows) * cols); }
   /// Entries of m that are not NaN (NaN marks "never written", see model::Discretise).
   template <class M>
   void SetFromWritten(const M& m) {
-    entries_.clear();
-    for (int c = 0; c < m.cols(); ++c) {
-      for (int r = 0; r < m.rows(); ++r) {
-        if (!std::isnan(m(r, c))) entries_.push_back({r, c});
-      }
-    }
+    SetFromMask(m.array() == m.array());
   }
   /// Entries where the boolean mask is set.
   template <class M>
@@ -44,7 +38,7 @@ class SparsityPattern {
   template <class M, class In, class Out>
   void Multiply(const M& m, const In& in, Out* out) const {
     out->setZero();
-    for (const Entry& e : entries_) out->row(e.row) += m(e.row, e.col) * in.row(e.col);
+    AddProduct(m, in, out);
   }
   /// out += m' * in.
   template <class M, class In, class Out>
