@@ -63,6 +63,19 @@ struct RelativeRows {
     *dy_dr << c, s, 0, -s, c, 0, 0, 0, 1;
     *dy_dpsi = Vec3(-s * r.x() + c * r.y(), -c * r.x() - s * r.y(), 0.0);
   }
+  /// Writes sign * dy/dr at (row, r_col) and dy/dpsi at (row, psi_col) of yx: in {m} only
+  /// the diagonal, the structural nonzeros (the solver's Gauss-Newton blocks then skip the
+  /// zero couplings between axes and with the yaw).
+  template <class Jx>
+  static void WriteJacobian(TargetFrame frame, double sign, const Mat3& dy_dr, const Vec3& dy_dpsi,
+                            int row, int r_col, int psi_col, Jx* yx) {
+    if (frame == TargetFrame::kInertial) {
+      yx->template block<3, 3>(row, r_col).diagonal().setConstant(sign);
+      return;
+    }
+    yx->template block<3, 3>(row, r_col) = sign * dy_dr;
+    yx->template block<3, 1>(row, psi_col) = dy_dpsi;
+  }
 };
 
 /// Problems F2, F6 (the reference formulation): follower with `Neighbours` neighbours in
@@ -90,8 +103,7 @@ struct FollowerProblem {
           x.template segment<3>(o + model::NeighbourIndex::kVel) -
           x.template segment<3>(Model::kVel);
       if (yx != nullptr) {
-        yx->template block<3, 3>(3 * j, o) = dr;
-        yx->template block<3, 1>(3 * j, Model::kPsi) = dpsi;
+        RelativeRows::WriteJacobian(frame, 1.0, dr, dpsi, 3 * j, o, Model::kPsi, yx);
         yx->template block<3, 3>(3 * kN + 3 * j, o + model::NeighbourIndex::kVel)
             .diagonal()
             .setOnes();
@@ -149,8 +161,7 @@ struct ReducedFollowerProblem {
       y->template segment<3>(3 * kN + 3 * j) =
           p.template segment<3>(ParamVel(j)) - x.template segment<3>(Model::kVel);
       if (yx != nullptr) {
-        yx->template block<3, 3>(3 * j, Model::kPos) = -dr;
-        yx->template block<3, 1>(3 * j, Model::kPsi) = dpsi;
+        RelativeRows::WriteJacobian(frame, -1.0, dr, dpsi, 3 * j, Model::kPos, Model::kPsi, yx);
         yx->template block<3, 3>(3 * kN + 3 * j, Model::kVel).diagonal().setConstant(-1.0);
       }
     }

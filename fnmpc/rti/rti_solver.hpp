@@ -222,8 +222,6 @@ class RtiSolver {
       d_[k] = next - x_[k + 1];
       problem_.StageResidual(x_[k], u_[k], params_[k], &y, &yx, &yu);
       const Y wr = w_.cwiseProduct(y - yref_[k]);
-      r_mat_[k].noalias() = yu.transpose() * w_.asDiagonal() * yu;
-      r_vec_[k].noalias() = yu.transpose() * wr;
       GaussNewtonBlocks(yx, &yu, w_, wr, yx_cols_, yu_cols_, q_pattern_, k);
       finite = finite && a_pattern_.AllFinite(a_[k]) && b_pattern_.AllFinite(b_[k]);
       finite = finite && d_[k].allFinite() && wr.allFinite();
@@ -824,8 +822,9 @@ class RtiSolver {
   }
 
   // Gauss-Newton blocks of node k from the residual Jacobians, over the nonzero columns
-  // of each residual row: Q_k = Jx' W Jx, S_k = Ju' W Jx, q_k = Jx' W r (the entries of
-  // q_pattern outside the rows' products are never written and stay zero).
+  // of each residual row: Q_k = Jx' W Jx, S_k = Ju' W Jx, R_k = Ju' W Ju, q_k = Jx' W r,
+  // r_k = Ju' W r (the entries of q_pattern outside the rows' products are never written
+  // and stay zero; R_k and r_k only with ju).
   template <class Jx, class Ju, class Wv, class Rv>
   void GaussNewtonBlocks(const Jx& jx, const Ju* ju, const Wv& w, const Rv& wr,
                          const std::vector<std::vector<int>>& x_cols,
@@ -835,6 +834,8 @@ class RtiSolver {
     q_vec_[k].setZero();
     if (ju != nullptr) {
       for (const auto& e : s_pattern_.entries()) s_mat_[k](e.row, e.col) = 0.0;
+      r_mat_[k].setZero();
+      r_vec_[k].setZero();
     }
     for (int r = 0; r < static_cast<int>(x_cols.size()); ++r) {
       if (w[r] == 0.0) continue;
@@ -846,6 +847,13 @@ class RtiSolver {
         if (ju != nullptr) {
           for (int i : u_cols[r]) s_mat_[k](i, a) += (*ju)(r, i) * wya;
         }
+      }
+      if (ju == nullptr) continue;
+      for (int i : u_cols[r]) {
+        const double yi = (*ju)(r, i);
+        r_vec_[k][i] += yi * wr[r];
+        const double wyi = w[r] * yi;
+        for (int j : u_cols[r]) r_mat_[k](i, j) += wyi * (*ju)(r, j);
       }
     }
   }
