@@ -12,28 +12,7 @@
 #include <string>
 
 #include "synthetic_truth.hpp"
-
-// Counts global operator new calls to check the "no allocation after construction" rule.
-// The replacement also works under AddressSanitizer (it intercepts the malloc below).
-namespace {
-std::size_t g_allocations = 0;
-}  // namespace
-void* operator new(std::size_t n) {
-  ++g_allocations;
-  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) { return operator new(n); }
-void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
-  return std::malloc(n == 0 ? 1 : n);
-}
-void* operator new[](std::size_t n, const std::nothrow_t&) noexcept {
-  return std::malloc(n == 0 ? 1 : n);
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+#include "tests/support/allocation_counter.hpp"
 
 namespace fnmpc::estimation {
 namespace {
@@ -469,15 +448,19 @@ TEST(VehicleEkfTest, NoHeapAllocationAfterConstruction) {
       GenerateVehicleStream(TakeoffLandingProfile(), cfg.sensors, opt, &rng).ByArrival();
   VehicleEkf ekf(cfg, model::VehicleParams{});
   // When processing, commanding and estimating
-  const std::size_t before = g_allocations;
   double sum = 0.0;
-  for (const Measurement& m : ms) {
-    ekf.Process(m);
-    ekf.SetCommand(m.stamp, 13.0, 0.0, 0.0, 0.4);
-    sum += ekf.Estimate(m.stamp + 0.01).position.z();
+  long allocations = 0;
+  {
+    const testing::AllocationCounter counter;
+    for (const Measurement& m : ms) {
+      ekf.Process(m);
+      ekf.SetCommand(m.stamp, 13.0, 0.0, 0.0, 0.4);
+      sum += ekf.Estimate(m.stamp + 0.01).position.z();
+    }
+    allocations = counter.count();
   }
   // Then no operator new was called
-  EXPECT_EQ(g_allocations, before);
+  EXPECT_EQ(allocations, 0);
   EXPECT_TRUE(std::isfinite(sum));
   EXPECT_GT(ekf.counters().replays, 0);
 }

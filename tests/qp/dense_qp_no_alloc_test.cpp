@@ -14,36 +14,11 @@
 
 #include "fnmpc/qp/dense_qp.hpp"
 #include "tests/qp/qp_test_problems.hpp"
+#include "tests/support/allocation_counter.hpp"
 
 #ifndef EIGEN_RUNTIME_NO_MALLOC
 #error "this test must be compiled with EIGEN_RUNTIME_NO_MALLOC"
 #endif
-
-namespace {
-std::atomic<bool> g_count_new{false};
-std::atomic<int> g_new_calls{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  if (g_count_new.load()) g_new_calls.fetch_add(1);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t size) {
-  if (g_count_new.load()) g_new_calls.fetch_add(1);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
-  return std::malloc(n == 0 ? 1 : n);
-}
-void* operator new[](std::size_t n, const std::nothrow_t&) noexcept {
-  return std::malloc(n == 0 ? 1 : n);
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
 
 namespace fnmpc::qp {
 namespace {
@@ -59,13 +34,15 @@ struct AllocationCount {
 AllocationCount GuardedSolve(DenseQpSolver* solver, const DenseQp& qp, QpSolution* sol,
                              QpStatus* status) {
   const int eigen_before = g_eigen_assert_failures.load();
-  g_new_calls.store(0);
+  long news = 0;
   Eigen::internal::set_is_malloc_allowed(false);
-  g_count_new.store(true);
-  *status = solver->Solve(qp, sol);
-  g_count_new.store(false);
+  {
+    const ::fnmpc::testing::AllocationCounter counter;
+    *status = solver->Solve(qp, sol);
+    news = counter.count();
+  }
   Eigen::internal::set_is_malloc_allowed(true);
-  return {g_eigen_assert_failures.load() - eigen_before, g_new_calls.load()};
+  return {g_eigen_assert_failures.load() - eigen_before, static_cast<int>(news)};
 }
 
 TEST(DenseQpNoAllocTest, GuardDetectsAnAllocation) {

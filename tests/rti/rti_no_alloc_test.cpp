@@ -3,33 +3,11 @@
 // after construction: this binary replaces the global operator new to count.
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <cstdlib>
-#include <new>
+#include <optional>
+#include <vector>
 
 #include "fnmpc/rti/benchmark_ocps.hpp"
-
-namespace {
-std::atomic<long> g_allocations{0};
-std::atomic<bool> g_counting{false};
-}  // namespace
-
-void* operator new(std::size_t n) {
-  if (g_counting.load()) ++g_allocations;
-  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) { return operator new(n); }
-void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
-  return std::malloc(n == 0 ? 1 : n);
-}
-void* operator new[](std::size_t n, const std::nothrow_t&) noexcept {
-  return std::malloc(n == 0 ? 1 : n);
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+#include "tests/support/allocation_counter.hpp"
 
 namespace fnmpc::rti::benchmark {
 namespace {
@@ -48,8 +26,7 @@ TEST(RtiNoAllocTest, LeaderStepsDoNotAllocate) {
   // reachable under the hard |v| <= 2 bound, so every QP is feasible)
   int steps_with_active_bounds = 0;
   int unconstrained_steps = 0;  // the Riccati step without condensing or QP
-  g_allocations = 0;
-  g_counting = true;
+  std::optional<testing::AllocationCounter> counter(std::in_place);
   // (then 140 steps holding the last waypoint without disturbance, where the QP's active
   // set empties and the unconstrained Riccati step takes over)
   for (int k = 1; k < 200; ++k) {
@@ -64,13 +41,14 @@ TEST(RtiNoAllocTest, LeaderStepsDoNotAllocate) {
       ++steps_with_active_bounds;
     }
   }
-  g_counting = false;
+  const long allocations = counter->count();
+  counter.reset();
   // Then nothing was allocated, bounds were active, both the QP and the unconstrained
   // Riccati step ran, and every QP was solved
   EXPECT_GT(steps_with_active_bounds, 0);
   EXPECT_GT(unconstrained_steps, 0);
   EXPECT_LT(unconstrained_steps, 199);
-  EXPECT_EQ(g_allocations.load(), 0);
+  EXPECT_EQ(allocations, 0);
   EXPECT_EQ(solver.stats().fallback_count, 0);
 }
 
@@ -89,28 +67,33 @@ TEST(RtiNoAllocTest, FollowerStepsDoNotAllocate) {
   nb6[1] = nb[1];
   auto six = MakeFollowerSolver<6>(Vec<6>::Zero(), nb6);
   six.Step(FollowerState<6>(Vec<6>::Zero(), nb6), &u);
-  g_allocations = 0;
-  g_counting = true;
-  for (int k = 1; k < 30; ++k) {
-    solver.Shift();
-    solver.Step(FollowerState<2>(Vec<6>::Zero(), nb), &u);
-    reduced.Shift();
-    reduced.Step(SetReducedFollowerStage<2>(&reduced, Vec<6>::Zero(), nb), &u);
-    six.Shift();
-    six.Step(FollowerState<6>(Vec<6>::Zero(), nb6), &u);
+  long allocations = 0;
+  {
+    const testing::AllocationCounter counter;
+    for (int k = 1; k < 30; ++k) {
+      solver.Shift();
+      solver.Step(FollowerState<2>(Vec<6>::Zero(), nb), &u);
+      reduced.Shift();
+      reduced.Step(SetReducedFollowerStage<2>(&reduced, Vec<6>::Zero(), nb), &u);
+      six.Shift();
+      six.Step(FollowerState<6>(Vec<6>::Zero(), nb6), &u);
+    }
+    allocations = counter.count();
   }
-  g_counting = false;
-  EXPECT_EQ(g_allocations.load(), 0);
+  EXPECT_EQ(allocations, 0);
 }
 
 TEST(RtiNoAllocTest, CounterSeesAllocations) {
   // The counter itself works (guards the tests above against a silent no-op).
-  g_allocations = 0;
-  g_counting = true;
-  auto* p = new std::vector<double>(100);
-  g_counting = false;
+  long allocations = 0;
+  std::vector<double>* p = nullptr;
+  {
+    const testing::AllocationCounter counter;
+    p = new std::vector<double>(100);
+    allocations = counter.count();
+  }
   delete p;
-  EXPECT_GE(g_allocations.load(), 1);
+  EXPECT_GE(allocations, 1);
 }
 
 }  // namespace
