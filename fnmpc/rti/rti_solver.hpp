@@ -613,8 +613,9 @@ class RtiSolver {
   }
 
   // Riccati recursion P_N = Q_N, Rbar_k = R_k + B_k' P_k+1 B_k = L_k L_k',
-  // Kt_k = L_k^-1 (S_k + B_k' P_k+1 A_k), P_k = Q_k + A_k' P_k+1 A_k - Kt_k' Kt_k:
-  // O(N nx^3); FactorStage handles an Rbar_k that is not positive definite.
+  // Kt_k = L_k^-1 (S_k + B_k' P_k+1 A_k), P_k = Q_k + A_k' P_k+1 A_k - Kt_k' Kt_k
+  // (k >= 1: x_0 is fixed, P_0 is not needed): O(N nx^3); FactorStage handles an Rbar_k
+  // that is not positive definite.
   void Riccati() {
     riccati_ok_ = true;
     p_mat_[n_] = q_mat_[n_];
@@ -628,6 +629,7 @@ class RtiSolver {
       const Mat<kNu, kNx> sbar = s_mat_[k] + bpa;
       Mat<kNu, kNx>& kt = k_gain_[k];
       FactorStage(k, rbar, sbar, &kt);
+      if (k == 0) break;  // P_0 is never used
       MX pa, apa;
       MultiplyARight(k, p, &pa);
       MultiplyATransposed(k, pa, &apa);
@@ -669,6 +671,7 @@ class RtiSolver {
       FactorStage(k, rbar, sbar, &kt);
       k_gain_[k].setZero();
       for (int i = 0; i < nr; ++i) k_gain_[k].col(rel_[i]) = kt.col(i);
+      if (k == 0) break;  // P_0 is never used
       MC pa(nr, nr);
       ac_pattern_.MultiplyRight(p, ac_, &pa);
       MC& pk = pc_mat_[k];
