@@ -451,7 +451,7 @@ TEST(VehicleEkfTest, NoHeapAllocationAfterConstruction) {
   double sum = 0.0;
   long allocations = 0;
   {
-    const testing::AllocationCounter counter;
+    const ::fnmpc::testing::AllocationCounter counter;
     for (const Measurement& m : ms) {
       ekf.Process(m);
       ekf.SetCommand(m.stamp, 13.0, 0.0, 0.0, 0.4);

@@ -527,7 +527,7 @@ TEST(DenseQpSolverTest, BadGivenFactorIsAStatus) {
   QpSolution sol(DenseQpDims{3, 0});
   DenseQp qp(DenseQpDims{3, 0});
   qp.h_factor_given = true;
-  qp.g = Eigen::Vector3d(1.0, 2.0, 3.0);
+  qp.g << 1.0, 2.0, 3.0;
   // Given: a zero or negative pivot -> not convex
   qp.L = Eigen::Vector3d(1.0, 0.0, 2.0).asDiagonal();
   EXPECT_EQ(solver.Solve(qp, &sol), QpStatus::kNotConvex);

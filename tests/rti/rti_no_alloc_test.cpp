@@ -26,7 +26,7 @@ TEST(RtiNoAllocTest, LeaderStepsDoNotAllocate) {
   // reachable under the hard |v| <= 2 bound, so every QP is feasible)
   int steps_with_active_bounds = 0;
   int unconstrained_steps = 0;  // the Riccati step without condensing or QP
-  std::optional<testing::AllocationCounter> counter(std::in_place);
+  std::optional<::fnmpc::testing::AllocationCounter> counter(std::in_place);
   // (then 140 steps holding the last waypoint without disturbance, where the QP's active
   // set empties and the unconstrained Riccati step takes over)
   for (int k = 1; k < 200; ++k) {
@@ -69,7 +69,7 @@ TEST(RtiNoAllocTest, FollowerStepsDoNotAllocate) {
   six.Step(FollowerState<6>(Vec<6>::Zero(), nb6), &u);
   long allocations = 0;
   {
-    const testing::AllocationCounter counter;
+    const ::fnmpc::testing::AllocationCounter counter;
     for (int k = 1; k < 30; ++k) {
       solver.Shift();
       solver.Step(FollowerState<2>(Vec<6>::Zero(), nb), &u);
@@ -88,7 +88,7 @@ TEST(RtiNoAllocTest, CounterSeesAllocations) {
   long allocations = 0;
   std::vector<double>* p = nullptr;
   {
-    const testing::AllocationCounter counter;
+    const ::fnmpc::testing::AllocationCounter counter;
     p = new std::vector<double>(100);
     allocations = counter.count();
   }

@@ -414,12 +414,15 @@ ShootingOcp<model::QuadrotorModel> SpecLeaderOcp(const ReferenceTrajectory& ref,
   for (int k = 0; k < ocp.horizon; ++k) {
     ref.Sample(t + k * ocp.sample_time, &p, &v);
     VecX target = VecX::Zero(11);
-    target << p, v, 0, 0, kMass * kGravity, 0, 0;
+    target.segment<3>(0) = p;
+    target.segment<3>(3) = v;
+    target[8] = kMass * kGravity;
     ocp.target.push_back(target);
   }
   ref.Sample(t + ocp.horizon * ocp.sample_time, &p, &v);
   ocp.target_n = VecX::Zero(8);
-  ocp.target_n << p, v, 0, 0;
+  ocp.target_n.segment<3>(0) = p;
+  ocp.target_n.segment<3>(3) = v;
   return ocp;
 }
 
@@ -537,7 +540,8 @@ TEST(RtiIpoptTest, FollowerWithoutActiveBoundsMatchesIpopt) {
   const Vec3 vel(0.5, 0.4, 0.25);
   const auto nb = Neighbours(kD1 + Vec3(0.08, -0.06, 0.05), vel);
   Vec<6> own;
-  own << vel + Vec3(-0.1, 0.05, 0.02), 0.02, -0.03, 0.01;
+  own.head<3>() = vel + Vec3(-0.1, 0.05, 0.02);
+  own.tail<3>() << 0.02, -0.03, 0.01;
   auto solver = MakeFollowerSolver<2>(own, nb);
   const Vec<22> x0 = FollowerState<2>(own, nb);
   // Then the converged first call equals IPOPT's optimum, no bound active
