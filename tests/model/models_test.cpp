@@ -2,6 +2,7 @@
 // Derivatives of every model, integrator and residual against central finite differences.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -126,11 +127,13 @@ void CheckStructuredDiscretisation(std::mt19937* rng, int steps) {
                 "model::Discretise must pick the structured map of this model");
   constexpr int nx = Model::kNx;
   const model::AttitudeModelParams m;
-  for (int trial = 0; trial < 5; ++trial) {
+  for (int trial = 0; trial < 6; ++trial) {
     const Vec<nx> x = RandomVec<nx>(rng, 0.6);
     Vec<3> u = RandomVec<3>(rng, 0.35);
     u[0] += 13.0;
-    const double psi_ref = 0.3 * trial - 0.5;
+    // (the last trial is a yaw step of about 3 rad: the stage yaws move beyond
+    // kSinCosNearMax from the start, the others stay within it)
+    const double psi_ref = trial < 5 ? 0.3 * trial - 0.5 : 3.0;
     Mat<nx, nx> a_ref;
     Mat<nx, 3> b_ref;
     const Vec<nx> x_ref = model::Rk4<Model>(x, u, psi_ref, m, 0.05, steps, &a_ref, &b_ref);
@@ -157,6 +160,29 @@ void CheckStructuredDiscretisation(std::mt19937* rng, int steps) {
     // Without sensitivities the same next state.
     EXPECT_EQ(Model::Discretise(x, u, psi_ref, m, 0.05, steps, nullptr, nullptr), xn);
   }
+}
+
+TEST(RotationTest, SinCosNearAgreesWithLibm) {
+  // Given: random base angles and offsets up to kSinCosNearMax, both signs
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> base(-4.0, 4.0);
+  std::uniform_real_distribution<double> offset(-kSinCosNearMax, kSinCosNearMax);
+  double worst = 0.0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    Eigen::Array4d a0, d;
+    for (int i = 0; i < 4; ++i) {
+      a0[i] = base(rng);
+      d[i] = trial == 0 ? (i % 2 == 0 ? kSinCosNearMax : -kSinCosNearMax) : offset(rng);
+    }
+    Eigen::Array4d s, c;
+    SinCosNear(a0.sin(), a0.cos(), d, &s, &c);
+    // Then sin(a0 + d) and cos(a0 + d) to a few units in the last place
+    for (int i = 0; i < 4; ++i) {
+      worst = std::max({worst, std::abs(s[i] - std::sin(a0[i] + d[i])),
+                        std::abs(c[i] - std::cos(a0[i] + d[i]))});
+    }
+  }
+  EXPECT_LT(worst, 1e-15);
 }
 
 TEST(Rk4Test, StructuredDiscretisationEqualsGenericRk4) {
