@@ -21,49 +21,13 @@ Eigen::Matrix<S, 3, 1> BodyZ(const S& phi, const S& theta, const S& psi) {
 /// BodyZ and its partial derivatives with respect to (phi, theta, psi) (columns of *dz)
 /// from one evaluation of the six sines and cosines.
 inline void BodyZAndJacobian(double phi, double theta, double psi, Eigen::Vector3d* z,
-                             Eigen::Matrix3d* dz);
-
-/// BodyZAndJacobian from the sines and cosines of (phi, theta, psi).
-inline void BodyZAndJacobian(const Eigen::Vector3d& sin, const Eigen::Vector3d& cos,
-                             Eigen::Vector3d* z, Eigen::Matrix3d* dz) {
-  const double sphi = sin[0], sth = sin[1], spsi = sin[2];
-  const double cphi = cos[0], cth = cos[1], cpsi = cos[2];
+                             Eigen::Matrix3d* dz) {
+  const double cphi = std::cos(phi), sphi = std::sin(phi), cth = std::cos(theta),
+               sth = std::sin(theta), cpsi = std::cos(psi), spsi = std::sin(psi);
   *z << cpsi * sth * cphi + spsi * sphi, spsi * sth * cphi - cpsi * sphi, cth * cphi;
   *dz << -cpsi * sth * sphi + spsi * cphi, cpsi * cth * cphi, -spsi * sth * cphi + cpsi * sphi,
       -spsi * sth * sphi - cpsi * cphi, spsi * cth * cphi, cpsi * sth * cphi + spsi * sphi,
       -cth * sphi, -sth * cphi, 0.0;
-}
-
-inline void BodyZAndJacobian(double phi, double theta, double psi, Eigen::Vector3d* z,
-                             Eigen::Matrix3d* dz) {
-  BodyZAndJacobian({std::sin(phi), std::sin(theta), std::sin(psi)},
-                   {std::cos(phi), std::cos(theta), std::cos(psi)}, z, dz);
-}
-
-/// Largest offset SinCosNear takes [rad].
-inline constexpr double kSinCosNearMax = 0.3;
-
-/// sin(a0 + d) and cos(a0 + d), lane by lane, from sin(a0), cos(a0) and offsets |d| <=
-/// kSinCosNearMax: the angle-addition formulas with sin d and cos d by their Taylor series
-/// to degree 13 and 12 (truncation below 6e-19 there). Four lanes so that each Horner
-/// step is one vector instruction with AVX: the RK4 stages of one shooting interval visit
-/// eight nearby attitudes, and this is several times cheaper than libm's sincos for the
-/// three angles while agreeing with it to a few units in the last place.
-inline void SinCosNear(const Eigen::Array4d& sin_a0, const Eigen::Array4d& cos_a0,
-                       const Eigen::Array4d& d, Eigen::Array4d* sin, Eigen::Array4d* cos) {
-  // sin d = d (1 - d^2/(2 3) (1 - d^2/(4 5) (1 - ...))), cos d = 1 - d^2/(1 2) (1 - ...).
-  static constexpr double kSin[6] = {1.0 / 6, 1.0 / 20, 1.0 / 42, 1.0 / 72, 1.0 / 110, 1.0 / 156};
-  static constexpr double kCos[6] = {1.0 / 2, 1.0 / 12, 1.0 / 30, 1.0 / 56, 1.0 / 90, 1.0 / 132};
-  const Eigen::Array4d d2 = d * d;
-  Eigen::Array4d sd = Eigen::Array4d::Ones();
-  Eigen::Array4d cd = Eigen::Array4d::Ones();
-  for (int n = 5; n >= 0; --n) {
-    sd = 1.0 - (kSin[n] * d2) * sd;
-    cd = 1.0 - (kCos[n] * d2) * cd;
-  }
-  sd *= d;
-  *sin = sin_a0 * cd + cos_a0 * sd;
-  *cos = cos_a0 * cd - sin_a0 * sd;
 }
 
 /// Partial derivatives of BodyZ with respect to (phi, theta, psi), as columns.

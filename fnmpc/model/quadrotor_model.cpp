@@ -61,22 +61,11 @@ OwnInterval OwnInterval::Integrate(const Vec3& v0, const Vec3& angles0, const Ve
     Eigen::Vector2d dkref;
     Mat<3, kCols> dv, dkv;
   };
-  // The stage attitudes stay near angles0: their sines and cosines from those of angles0
-  // and the offset (SinCosNear), unless a fast attitude or yaw change moves them far.
-  const Eigen::Array4d sin0(std::sin(angles0[0]), std::sin(angles0[1]), std::sin(angles0[2]), 0.0);
-  const Eigen::Array4d cos0(std::cos(angles0[0]), std::cos(angles0[1]), std::cos(angles0[2]), 1.0);
-  const auto eval = [&](const Vec3& a, const Vec3& offset, const Vec3& al,
-                        const Eigen::Vector2d& be, Stage* s) {
+  const auto eval = [&](const Vec3& a, const Vec3& al, const Eigen::Vector2d& be, Stage* s) {
     // z = R e3 and its derivatives by (phi, theta, psi).
     Vec3 z;
     Mat3 dz;
-    if (offset.cwiseAbs().maxCoeff() <= kSinCosNearMax) {
-      Eigen::Array4d sin_a, cos_a;
-      SinCosNear(sin0, cos0, Eigen::Array4d(offset[0], offset[1], offset[2], 0.0), &sin_a, &cos_a);
-      BodyZAndJacobian(sin_a.head<3>().matrix(), cos_a.head<3>().matrix(), &z, &dz);
-    } else {
-      BodyZAndJacobian(a[0], a[1], a[2], &z, &dz);
-    }
+    BodyZAndJacobian(a[0], a[1], a[2], &z, &dz);
     const auto zphi = dz.col(0);
     const auto zth = dz.col(1);
     const auto zpsi = dz.col(2);
@@ -102,33 +91,29 @@ OwnInterval OwnInterval::Integrate(const Vec3& v0, const Vec3& angles0, const Ve
   r.dangle_dangle0.setOnes();
   r.dangle_dref.setZero();
   Stage s1, s2, s3, s4;
-  Vec3 drift = Vec3::Zero();  // r.angles - angles0
   for (int step = 0; step < steps; ++step) {
     // Stage states x + c h k_prev and their sensitivities S + c h dk_prev.
     s1.v = r.velocity;
     s1.dv = r.dv;
-    eval(r.angles, drift, r.dangle_dangle0, r.dangle_dref, &s1);
+    eval(r.angles, r.dangle_dangle0, r.dangle_dref, &s1);
     s2.v = r.velocity + (0.5 * h) * s1.kv;
     s2.dv = r.dv + (0.5 * h) * s1.dkv;
-    eval(r.angles + (0.5 * h) * s1.ka, drift + (0.5 * h) * s1.ka,
-         r.dangle_dangle0 + (0.5 * h) * s1.dka0, r.dangle_dref + (0.5 * h) * s1.dkref, &s2);
+    eval(r.angles + (0.5 * h) * s1.ka, r.dangle_dangle0 + (0.5 * h) * s1.dka0,
+         r.dangle_dref + (0.5 * h) * s1.dkref, &s2);
     s3.v = r.velocity + (0.5 * h) * s2.kv;
     s3.dv = r.dv + (0.5 * h) * s2.dkv;
-    eval(r.angles + (0.5 * h) * s2.ka, drift + (0.5 * h) * s2.ka,
-         r.dangle_dangle0 + (0.5 * h) * s2.dka0, r.dangle_dref + (0.5 * h) * s2.dkref, &s3);
+    eval(r.angles + (0.5 * h) * s2.ka, r.dangle_dangle0 + (0.5 * h) * s2.dka0,
+         r.dangle_dref + (0.5 * h) * s2.dkref, &s3);
     s4.v = r.velocity + h * s3.kv;
     s4.dv = r.dv + h * s3.dkv;
-    eval(r.angles + h * s3.ka, drift + h * s3.ka, r.dangle_dangle0 + h * s3.dka0,
-         r.dangle_dref + h * s3.dkref, &s4);
+    eval(r.angles + h * s3.ka, r.dangle_dangle0 + h * s3.dka0, r.dangle_dref + h * s3.dkref, &s4);
     const double w = h / 6.0;
     // p' = v: the displacement and its sensitivity integrate the stage velocities.
     r.displacement += w * (s1.v + 2.0 * s2.v + 2.0 * s3.v + s4.v);
     r.dp += w * (s1.dv + 2.0 * s2.dv + 2.0 * s3.dv + s4.dv);
     r.velocity += w * (s1.kv + 2.0 * s2.kv + 2.0 * s3.kv + s4.kv);
     r.dv += w * (s1.dkv + 2.0 * s2.dkv + 2.0 * s3.dkv + s4.dkv);
-    const Vec3 angle_step = w * (s1.ka + 2.0 * s2.ka + 2.0 * s3.ka + s4.ka);
-    r.angles += angle_step;
-    drift += angle_step;
+    r.angles += w * (s1.ka + 2.0 * s2.ka + 2.0 * s3.ka + s4.ka);
     r.dangle_dangle0 += w * (s1.dka0 + 2.0 * s2.dka0 + 2.0 * s3.dka0 + s4.dka0);
     r.dangle_dref += w * (s1.dkref + 2.0 * s2.dkref + 2.0 * s3.dkref + s4.dkref);
   }
