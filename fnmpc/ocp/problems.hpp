@@ -46,35 +46,29 @@ struct LeaderProblem {
   }
 };
 
-/// Shared part of the follower residuals: relative-position rows for target frame {c}
-/// (Rz(psi)^T r) or {m} (r), their Jacobians w.r.t. r and psi.
+/// Shared part of the follower residuals: the three relative-position rows of a relative
+/// position r, Rz(psi)^T r in target frame {c} or r in {m}, written at `row` of y; with yx,
+/// also sign * d rows/d r at (row, r_col) and d rows/d psi at (row, psi_col), where r =
+/// sign * (state at r_col) + const. In {m} only the diagonal of d rows/d r is written: the
+/// structural nonzeros, so the solver's Gauss-Newton blocks skip the zero couplings between
+/// the axes and with the yaw.
 struct RelativeRows {
-  static void Eval(TargetFrame frame, const Vec3& r, double psi, Vec3* y, Mat3* dy_dr,
-                   Vec3* dy_dpsi) {
+  template <class Yv, class Jx>
+  static void Write(TargetFrame frame, const Vec3& r, double psi, double sign, int row, int r_col,
+                    int psi_col, Yv* y, Jx* yx) {
     if (frame == TargetFrame::kInertial) {
-      *y = r;
-      dy_dr->setIdentity();
-      dy_dpsi->setZero();
+      y->template segment<3>(row) = r;
+      if (yx != nullptr) yx->template block<3, 3>(row, r_col).diagonal().setConstant(sign);
       return;
     }
     const double c = std::cos(psi), s = std::sin(psi);
-    // Rz(psi)^T r
-    *y = Vec3(c * r.x() + s * r.y(), -s * r.x() + c * r.y(), r.z());
-    *dy_dr << c, s, 0, -s, c, 0, 0, 0, 1;
-    *dy_dpsi = Vec3(-s * r.x() + c * r.y(), -c * r.x() - s * r.y(), 0.0);
-  }
-  /// Writes sign * dy/dr at (row, r_col) and dy/dpsi at (row, psi_col) of yx: in {m} only
-  /// the diagonal, the structural nonzeros (the solver's Gauss-Newton blocks then skip the
-  /// zero couplings between axes and with the yaw).
-  template <class Jx>
-  static void WriteJacobian(TargetFrame frame, double sign, const Mat3& dy_dr, const Vec3& dy_dpsi,
-                            int row, int r_col, int psi_col, Jx* yx) {
-    if (frame == TargetFrame::kInertial) {
-      yx->template block<3, 3>(row, r_col).diagonal().setConstant(sign);
-      return;
-    }
+    y->template segment<3>(row) = Vec3(c * r.x() + s * r.y(), -s * r.x() + c * r.y(), r.z());
+    if (yx == nullptr) return;
+    Mat3 dy_dr;
+    dy_dr << c, s, 0, -s, c, 0, 0, 0, 1;
     yx->template block<3, 3>(row, r_col) = sign * dy_dr;
-    yx->template block<3, 1>(row, psi_col) = dy_dpsi;
+    yx->template block<3, 1>(row, psi_col) =
+        Vec3(-s * r.x() + c * r.y(), -c * r.x() - s * r.y(), 0.0);
   }
 };
 
@@ -93,17 +87,13 @@ struct FollowerProblem {
   template <int Ny>
   void Rows(const Vec<kNx>& x, Vec<Ny>* y, Mat<Ny, kNx>* yx) const {
     const double psi = x[Model::kPsi];
-    Vec3 rel, dpsi;
-    Mat3 dr;
     for (int j = 0; j < kN; ++j) {
       const int o = Model::Neighbour(j);
-      RelativeRows::Eval(frame, x.template segment<3>(o), psi, &rel, &dr, &dpsi);
-      y->template segment<3>(3 * j) = rel;
+      RelativeRows::Write(frame, x.template segment<3>(o), psi, 1.0, 3 * j, o, Model::kPsi, y, yx);
       y->template segment<3>(3 * kN + 3 * j) =
           x.template segment<3>(o + model::NeighbourIndex::kVel) -
           x.template segment<3>(Model::kVel);
       if (yx != nullptr) {
-        RelativeRows::WriteJacobian(frame, 1.0, dr, dpsi, 3 * j, o, Model::kPsi, yx);
         yx->template block<3, 3>(3 * kN + 3 * j, o + model::NeighbourIndex::kVel)
             .diagonal()
             .setOnes();
@@ -152,16 +142,12 @@ struct ReducedFollowerProblem {
   template <int Ny>
   void Rows(const Vec<kNx>& x, const Vec<kNp>& p, Vec<Ny>* y, Mat<Ny, kNx>* yx) const {
     const double psi = x[Model::kPsi];
-    Vec3 rel, dpsi;
-    Mat3 dr;
     for (int j = 0; j < kN; ++j) {
       const Vec3 r = p.template segment<3>(ParamRelPos(j)) - x.template segment<3>(Model::kPos);
-      RelativeRows::Eval(frame, r, psi, &rel, &dr, &dpsi);
-      y->template segment<3>(3 * j) = rel;
+      RelativeRows::Write(frame, r, psi, -1.0, 3 * j, Model::kPos, Model::kPsi, y, yx);
       y->template segment<3>(3 * kN + 3 * j) =
           p.template segment<3>(ParamVel(j)) - x.template segment<3>(Model::kVel);
       if (yx != nullptr) {
-        RelativeRows::WriteJacobian(frame, -1.0, dr, dpsi, 3 * j, Model::kPos, Model::kPsi, yx);
         yx->template block<3, 3>(3 * kN + 3 * j, Model::kVel).diagonal().setConstant(-1.0);
       }
     }
