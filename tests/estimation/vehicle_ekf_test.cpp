@@ -449,16 +449,13 @@ TEST(VehicleEkfTest, NoHeapAllocationAfterConstruction) {
   VehicleEkf ekf(cfg, model::VehicleParams{});
   // When processing, commanding and estimating
   double sum = 0.0;
-  long allocations = 0;
-  {
-    const ::fnmpc::testing::AllocationCounter counter;
+  const long allocations = ::fnmpc::testing::CountAllocations([&] {
     for (const Measurement& m : ms) {
       ekf.Process(m);
       ekf.SetCommand(m.stamp, 13.0, 0.0, 0.0, 0.4);
       sum += ekf.Estimate(m.stamp + 0.01).position.z();
     }
-    allocations = counter.count();
-  }
+  });
   // Then no operator new was called
   EXPECT_EQ(allocations, 0);
   EXPECT_TRUE(std::isfinite(sum));

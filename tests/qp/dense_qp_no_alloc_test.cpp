@@ -34,13 +34,8 @@ struct AllocationCount {
 AllocationCount GuardedSolve(DenseQpSolver* solver, const DenseQp& qp, QpSolution* sol,
                              QpStatus* status) {
   const int eigen_before = g_eigen_assert_failures.load();
-  long news = 0;
   Eigen::internal::set_is_malloc_allowed(false);
-  {
-    const ::fnmpc::testing::AllocationCounter counter;
-    *status = solver->Solve(qp, sol);
-    news = counter.count();
-  }
+  const long news = ::fnmpc::testing::CountAllocations([&] { *status = solver->Solve(qp, sol); });
   Eigen::internal::set_is_malloc_allowed(true);
   return {g_eigen_assert_failures.load() - eigen_before, static_cast<int>(news)};
 }

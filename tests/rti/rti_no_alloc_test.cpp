@@ -3,7 +3,6 @@
 // after construction: this binary replaces the global operator new to count.
 #include <gtest/gtest.h>
 
-#include <optional>
 #include <vector>
 
 #include "fnmpc/rti/benchmark_ocps.hpp"
@@ -26,23 +25,22 @@ TEST(RtiNoAllocTest, LeaderStepsDoNotAllocate) {
   // reachable under the hard |v| <= 2 bound, so every QP is feasible)
   int steps_with_active_bounds = 0;
   int unconstrained_steps = 0;  // the Riccati step without condensing or QP
-  std::optional<::fnmpc::testing::AllocationCounter> counter(std::in_place);
   // (then 140 steps holding the last waypoint without disturbance, where the QP's active
   // set empties and the unconstrained Riccati step takes over)
-  for (int k = 1; k < 200; ++k) {
-    x = solver.states()[1];
-    if (k < 60) x.head<3>() += Vec3(0.01, -0.005, 0.002);
-    solver.Shift();
-    SetLeaderReferences(&solver, ref, k < 60 ? k * 0.05 : 30.0);
-    solver.Step(x, &u);
-    unconstrained_steps += solver.stats().unconstrained_step ? 1 : 0;
-    const auto& qp = solver.qp_solution();
-    if (qp.y_bounds.cwiseAbs().maxCoeff() > 0.0 || qp.y_constraints.cwiseAbs().maxCoeff() > 0.0) {
-      ++steps_with_active_bounds;
+  const long allocations = ::fnmpc::testing::CountAllocations([&] {
+    for (int k = 1; k < 200; ++k) {
+      x = solver.states()[1];
+      if (k < 60) x.head<3>() += Vec3(0.01, -0.005, 0.002);
+      solver.Shift();
+      SetLeaderReferences(&solver, ref, k < 60 ? k * 0.05 : 30.0);
+      solver.Step(x, &u);
+      unconstrained_steps += solver.stats().unconstrained_step ? 1 : 0;
+      const auto& qp = solver.qp_solution();
+      if (qp.y_bounds.cwiseAbs().maxCoeff() > 0.0 || qp.y_constraints.cwiseAbs().maxCoeff() > 0.0) {
+        ++steps_with_active_bounds;
+      }
     }
-  }
-  const long allocations = counter->count();
-  counter.reset();
+  });
   // Then nothing was allocated, bounds were active, both the QP and the unconstrained
   // Riccati step ran, and every QP was solved
   EXPECT_GT(steps_with_active_bounds, 0);
@@ -67,9 +65,7 @@ TEST(RtiNoAllocTest, FollowerStepsDoNotAllocate) {
   nb6[1] = nb[1];
   auto six = MakeFollowerSolver<6>(Vec<6>::Zero(), nb6);
   six.Step(FollowerState<6>(Vec<6>::Zero(), nb6), &u);
-  long allocations = 0;
-  {
-    const ::fnmpc::testing::AllocationCounter counter;
+  const long allocations = ::fnmpc::testing::CountAllocations([&] {
     for (int k = 1; k < 30; ++k) {
       solver.Shift();
       solver.Step(FollowerState<2>(Vec<6>::Zero(), nb), &u);
@@ -78,20 +74,15 @@ TEST(RtiNoAllocTest, FollowerStepsDoNotAllocate) {
       six.Shift();
       six.Step(FollowerState<6>(Vec<6>::Zero(), nb6), &u);
     }
-    allocations = counter.count();
-  }
+  });
   EXPECT_EQ(allocations, 0);
 }
 
 TEST(RtiNoAllocTest, CounterSeesAllocations) {
   // The counter itself works (guards the tests above against a silent no-op).
-  long allocations = 0;
   std::vector<double>* p = nullptr;
-  {
-    const ::fnmpc::testing::AllocationCounter counter;
-    p = new std::vector<double>(100);
-    allocations = counter.count();
-  }
+  const long allocations =
+      ::fnmpc::testing::CountAllocations([&] { p = new std::vector<double>(100); });
   delete p;
   EXPECT_GE(allocations, 1);
 }

@@ -11,38 +11,27 @@
 
 namespace fnmpc::testing {
 
-/// Counts the global operator new calls made while a counter is alive.
-class AllocationCounter {
- public:
-  AllocationCounter() {
-    Calls().store(0);
-    Counting().store(true);
-  }
-  ~AllocationCounter() { Counting().store(false); }
-  AllocationCounter(const AllocationCounter&) = delete;
-  AllocationCounter& operator=(const AllocationCounter&) = delete;
+namespace detail {
+inline std::atomic<long> g_allocations{0};
+inline std::atomic<bool> g_counting{false};
+}  // namespace detail
 
-  /// Calls of operator new since construction.
-  [[nodiscard]] long count() const { return Calls().load(); }
-
-  static std::atomic<long>& Calls() {
-    static std::atomic<long> calls{0};
-    return calls;
-  }
-  static std::atomic<bool>& Counting() {
-    static std::atomic<bool> counting{false};
-    return counting;
-  }
-};
+/// Runs f() and returns how many times it called the global operator new.
+template <class F>
+long CountAllocations(F&& f) {
+  detail::g_allocations.store(0);
+  detail::g_counting.store(true);
+  f();
+  detail::g_counting.store(false);
+  return detail::g_allocations.load();
+}
 
 }  // namespace fnmpc::testing
 
 // Not inlined: GCC 12 inlines malloc/free into the callers and then reports new/free
 // mismatches (-Wmismatched-new-delete) that are none, since these pairs match.
 [[gnu::noinline]] void* operator new(std::size_t n) {
-  if (fnmpc::testing::AllocationCounter::Counting().load()) {
-    fnmpc::testing::AllocationCounter::Calls().fetch_add(1);
-  }
+  if (fnmpc::testing::detail::g_counting.load()) fnmpc::testing::detail::g_allocations.fetch_add(1);
   if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
   throw std::bad_alloc();
 }
