@@ -23,10 +23,11 @@
 // With H = L L' the method works with J = L^-T Q (Q orthogonal) and an upper triangular R
 // such that J' N_active = [R; 0]; J1 = J(:, 0:q), J2 = J(:, q:n). For a candidate
 // constraint p: d = J' n_p, primal step z = J2 d2, dual step r = R^-1 d1, and
-// n_p' z = |d2|^2. Adding/dropping a constraint updates Q and R by Givens rotations.
-// J is never formed: only Q is stored and L^-1, L^-T are applied by triangular solves.
-// This avoids the O(n^3) inverse of L when only a few constraints become active (with
-// no active constraint the cost is one Cholesky, two triangular solves and one pass).
+// n_p' z = |d2|^2. Adding a constraint multiplies Q by one Householder reflection,
+// dropping one by Givens rotations (R is updated alike). J is never formed: L^-1, L^-T are
+// applied by triangular solves, and Q is kept as the product of its reflections and
+// rotations (ProductFormQ). This avoids the O(n^3) inverse of L and the O(n^2) update of a
+// dense Q per change when only a few constraints become active, as in MPC.
 
 namespace fnmpc::qp {
 namespace {
@@ -52,6 +53,116 @@ constexpr signed char kDeferred = 3;   // inequality implied by the active set u
 
 // Outcome of an attempt to add one constraint.
 enum class AddResult { kAdded, kSkipped, kInfeasible, kMaxIterations };
+
+// An n x n orthogonal matrix Q = Q_d T_1 ... T_s, with Q_d dense (or the identity) and T_t
+// Householder reflections diag(I_start, I - tau v v'), v = [1; essential], or Givens
+// rotations of the plane (j, j+1). Appending a transform costs O(n - start); applying Q or
+// Q' to a vector costs O(sum of the transforms' lengths) while that is below n^2, which is
+// when the list is folded into Q_d. A GI solve of an MPC QP typically has a handful of
+// active constraints among dozens of variables, so Q is far cheaper in product form than
+// updated densely (two passes over n x (n - q) per added constraint).
+class ProductFormQ {
+ public:
+  explicit ProductFormQ(int n)
+      : n_(n), dense_(n, n), essentials_(n, 2 * n), transforms_(2 * n), tmp_(n) {}
+
+  /// Q = I.
+  void Reset() {
+    identity_ = true;
+    count_ = 0;
+    cost_ = 0;
+  }
+  /// Q <- Q diag(I_start, I - tau v v'), v = [1; essential] (essential has n - start - 1
+  /// entries).
+  void AppendReflector(int start, const Eigen::Ref<const Eigen::VectorXd>& essential, double tau) {
+    if (count_ == static_cast<int>(transforms_.size())) Fold();
+    Transform& t = transforms_[count_];
+    t.reflector = true;
+    t.start = start;
+    t.tau = tau;
+    essentials_.col(count_).head(n_ - start - 1) = essential;
+    ++count_;
+    cost_ += 2 * (n_ - start);
+    if (cost_ > n_ * n_) Fold();
+  }
+  /// Q <- Q G, G the rotation rot of the plane (j, j+1) (Eigen's applyOnTheRight).
+  void AppendRotation(int j, const Eigen::JacobiRotation<double>& rot) {
+    if (count_ == static_cast<int>(transforms_.size())) Fold();
+    Transform& t = transforms_[count_];
+    t.reflector = false;
+    t.start = j;
+    t.rot = rot;
+    ++count_;
+    cost_ += 6;
+    if (cost_ > n_ * n_) Fold();
+  }
+  /// x <- Q' x = T_s' ... T_1' Q_d' x.
+  void ApplyTransposed(Eigen::VectorXd* x) {
+    if (!identity_) {
+      tmp_.noalias() = dense_.transpose() * *x;
+      x->swap(tmp_);
+    }
+    for (int t = 0; t < count_; ++t) ApplyOne(t, x, /*transposed=*/true);
+  }
+  /// x <- Q x = Q_d T_1 ... T_s x.
+  void Apply(Eigen::VectorXd* x) {
+    for (int t = count_ - 1; t >= 0; --t) ApplyOne(t, x, /*transposed=*/false);
+    if (!identity_) {
+      tmp_.noalias() = dense_ * *x;
+      x->swap(tmp_);
+    }
+  }
+
+ private:
+  struct Transform {
+    bool reflector = true;
+    int start = 0;  // first index of a reflection; j of a rotation
+    double tau = 0.0;
+    Eigen::JacobiRotation<double> rot;
+  };
+
+  // Reflections are symmetric; a rotation's transpose is its adjoint.
+  void ApplyOne(int t, Eigen::VectorXd* x, bool transposed) const {
+    const Transform& tr = transforms_[t];
+    if (tr.reflector) {
+      const int m = n_ - tr.start - 1;
+      const auto ess = essentials_.col(t).head(m);
+      auto tail = x->tail(m);
+      const double alpha = tr.tau * ((*x)[tr.start] + ess.dot(tail));
+      (*x)[tr.start] -= alpha;
+      tail -= alpha * ess;
+    } else {
+      x->applyOnTheLeft(tr.start, tr.start + 1, transposed ? tr.rot.adjoint() : tr.rot);
+    }
+  }
+
+  // Q_d <- Q_d T_1 ... T_s, and the list is emptied.
+  void Fold() {
+    if (identity_) dense_.setIdentity();
+    identity_ = false;
+    for (int t = 0; t < count_; ++t) {
+      const Transform& tr = transforms_[t];
+      if (tr.reflector) {
+        const int m = n_ - tr.start;
+        dense_.rightCols(m).applyHouseholderOnTheRight(essentials_.col(t).head(m - 1), tr.tau,
+                                                       tmp_.data());
+      } else {
+        dense_.applyOnTheRight(tr.start, tr.start + 1, tr.rot);
+      }
+    }
+    count_ = 0;
+    cost_ = 0;
+  }
+
+  int n_;
+  Eigen::MatrixXd dense_;       // Q_d (not read while identity_)
+  Eigen::MatrixXd essentials_;  // column t: essential part of reflection t
+  std::vector<Transform> transforms_;
+  Eigen::VectorXd tmp_;
+  bool identity_ = true;
+  int count_ = 0;
+  int cost_ = 0;  // flops of one application of T_1 ... T_s, roughly
+};
 
 }  // namespace
 
@@ -157,7 +268,7 @@ struct DenseQpSolver::Workspace {
   // for the few dozen variables of a condensed MPC QP, Eigen's blocked LLT spends most of
   // its time in GEMM set-up.
   bool Factorize(const Eigen::MatrixXd& h);
-  Eigen::MatrixXd Q;  // nv x nv orthogonal, J = L^-T Q
+  ProductFormQ Q;     // nv x nv orthogonal, J = L^-T Q
   Eigen::MatrixXd R;  // nv x nv, upper triangular block q x q is used
   Eigen::VectorXd x, d, z, r, u, w, v, lt;
   Eigen::VectorXd ax;  // nc, A x at the last scan
@@ -187,7 +298,7 @@ DenseQpSolver::Workspace::Workspace(const DenseQpDims& dims, const QpSettings& s
       nc(dims.nc),
       settings(s),
       chol(dims.nv, dims.nv),
-      Q(dims.nv, dims.nv),
+      Q(dims.nv),
       R(dims.nv, dims.nv),
       x(dims.nv),
       d(dims.nv),
@@ -204,7 +315,6 @@ DenseQpSolver::Workspace::Workspace(const DenseQpDims& dims, const QpSettings& s
       state(dims.nv + dims.nc),
       prev_id(dims.nv),
       prev_sign(dims.nv) {
-  Q.setZero();
   R.setZero();
   x.setZero();
   d.setZero();
@@ -268,7 +378,7 @@ bool DenseQpSolver::Workspace::Factorize(const Eigen::MatrixXd& h) {
 }
 
 void DenseQpSolver::Workspace::InitQ() {
-  Q.setIdentity();
+  Q.Reset();
   q_ready = true;
 }
 
@@ -286,7 +396,8 @@ void DenseQpSolver::Workspace::ComputeStep(int id, int sign, double* zn, double*
     lt = static_cast<double>(sign) * problem->A.row(id - nv).transpose();
     l.triangularView<Eigen::Lower>().solveInPlace(lt);
   }
-  d.noalias() = Q.transpose() * lt;
+  d = lt;
+  Q.ApplyTransposed(&d);
   const int m = nv - q;
   *dn2 = d.squaredNorm();
   if (!steps) {
@@ -294,7 +405,9 @@ void DenseQpSolver::Workspace::ComputeStep(int id, int sign, double* zn, double*
     return;
   }
   if (m > 0) {
-    z.noalias() = Q.rightCols(m) * d.tail(m);
+    z.head(q).setZero();
+    z.tail(m) = d.tail(m);
+    Q.Apply(&z);
     l.transpose().triangularView<Eigen::Upper>().solveInPlace(z);
     *zn = d.tail(m).squaredNorm();
   } else {
@@ -324,13 +437,13 @@ int DenseQpSolver::Workspace::BlockingConstraint(double* t1) const {
 
 void DenseQpSolver::Workspace::AppendActive(int id, int sign, double u_p) {
   // One Householder reflection P maps d(q:n) onto beta e_1; Q2 <- Q2 P keeps J' n_p = d
-  // (two vectorised passes over Q2 instead of n - q Givens rotations).
+  // (one transform appended instead of n - q Givens rotations).
   const int m = nv - q;
   if (m > 1) {
     double tau = 0.0;
     double beta = 0.0;
     d.tail(m).makeHouseholderInPlace(tau, beta);
-    Q.rightCols(m).applyHouseholderOnTheRight(d.tail(m - 1), tau, w.data());
+    Q.AppendReflector(q, d.tail(m - 1), tau);
     d[q] = beta;
     d.tail(m - 1).setZero();
   }
@@ -370,7 +483,7 @@ void DenseQpSolver::Workspace::DropActive(int k) {
     R(j + 1, j) = 0.0;
     const int tail = q - 2 - j;
     if (tail > 0) R.middleCols(j + 1, tail).applyOnTheLeft(j, j + 1, rot.adjoint());
-    Q.applyOnTheRight(j, j + 1, rot);
+    Q.AppendRotation(j, rot);
   }
   --q;
   R.col(q).setZero();
@@ -501,10 +614,12 @@ void DenseQpSolver::Workspace::Refine(bool clamp) {
   const auto& l = *factor;
   lt = problem->g;
   l.triangularView<Eigen::Lower>().solveInPlace(lt);
-  w.noalias() = Q.transpose() * lt;
+  w = lt;
+  Q.ApplyTransposed(&w);
   const int m = nv - q;
-  x.noalias() = Q.leftCols(q) * v.head(q);
-  if (m > 0) x.noalias() -= Q.rightCols(m) * w.tail(m);
+  x.head(q) = v.head(q);
+  x.tail(m) = -w.tail(m);
+  Q.Apply(&x);
   l.transpose().triangularView<Eigen::Upper>().solveInPlace(x);
   u.head(q) = v.head(q) + w.head(q);
   R.topLeftCorner(q, q).triangularView<Eigen::Upper>().solveInPlace(u.head(q));
