@@ -96,10 +96,16 @@ class RtiSolver {
     for (int k = 1; k <= n_; ++k) {
       for (std::size_t c = 0; c < layout_.indices.size(); ++c) {
         const int kind = layout_.soft[c] ? 1 : 0;
+        soft_to_hard_.push_back(static_cast<int>(hard_rows_.size()));
         rows_.push_back({k, layout_.indices[c], kind});
-        if (kind == 1) rows_.push_back({k, layout_.indices[c], 2});
+        if (kind == 1) {
+          soft_to_hard_.push_back(static_cast<int>(hard_rows_.size()));
+          rows_.push_back({k, layout_.indices[c], 2});
+        }
+        hard_rows_.push_back({k, layout_.indices[c], 0});
       }
     }
+    nch_ = static_cast<int>(hard_rows_.size());
     x_.assign(n_ + 1, X::Zero());
     u_.assign(n_, U::Zero());
     yref_.assign(n_, Y::Zero());
@@ -137,7 +143,7 @@ class RtiSolver {
     qp_.L.setZero();
     if (nsl_ > 0) {
       const int nv = n_ * kNu;
-      const qp::DenseQpDims hard{nv, nc_};
+      const qp::DenseQpDims hard{nv, nch_};
       qp_no_slack_ = qp::DenseQp(hard);
       qp_no_slack_solution_ = qp::QpSolution(hard);
       qp_no_slack_solver_ = std::make_unique<qp::DenseQpSolver>(hard, settings_.qp);
@@ -298,13 +304,11 @@ class RtiSolver {
         qp.lb.template segment<kNu>(UPos(k)) = lbu_[k] - u_[k];
         qp.ub.template segment<kNu>(UPos(k)) = ubu_[k] - u_[k];
       }
-      for (int r = 0; r < nc_; ++r) {
-        const Row& row = rows_[r];
+      for (int h = 0; h < nch_; ++h) {
+        const Row& row = hard_rows_[h];
         const double base = x_[row.stage][row.index] + e_[row.stage][row.index];
-        const double lb = lbx_[row.stage][row.index] - base;
-        const double ub = ubx_[row.stage][row.index] - base;
-        qp.lbA[r] = row.kind == 2 ? -kInf : lb;
-        qp.ubA[r] = row.kind == 1 ? kInf : ub;
+        qp.lbA[h] = lbx_[row.stage][row.index] - base;
+        qp.ubA[h] = ubx_[row.stage][row.index] - base;
       }
       qp::QpStatus qs = qp::QpStatus::kOptimal;
       if (nsl_ == 0) {
@@ -495,7 +499,7 @@ class RtiSolver {
   struct Row {
     int stage;  // node k = 1..N
     int index;  // state component
-    int kind;   // 0 hard two-sided, 1 soft lower, 2 soft upper
+    int kind;   // 0 two-sided (hard, or any row of the hard QP), 1 soft lower, 2 soft upper
   };
 
   // Soft bounds are rarely violated, and then the QP without slack variables (soft bounds
@@ -511,18 +515,22 @@ class RtiSolver {
       return false;
     }
     const qp::QpSolution& hard = qp_no_slack_solution_;
-    // Slack bound multiplier of stage k (stationarity in s_k at s_k = 0): the soft rows'
-    // multipliers enter with A = +1 (lower, y <= 0) and -1 (upper, y >= 0).
+    // Multipliers of the soft QP's rows: a two-sided hard row's goes to the soft row of its
+    // active side. Slack bound multiplier of stage k (stationarity in s_k at s_k = 0): the
+    // soft rows' multipliers enter with A = +1 (lower, y <= 0) and -1 (upper, y >= 0).
     auto slack_bound = qp_solution_.y_bounds.tail(nsl_);
     slack_bound.setConstant(-settings_.soft_linear_weight);
     for (int r = 0; r < nc_; ++r) {
-      if (rows_[r].kind != 0) slack_bound[rows_[r].stage - 1] += std::abs(hard.y_constraints[r]);
+      const double y = hard.y_constraints[soft_to_hard_[r]];
+      const int kind = rows_[r].kind;
+      const double yr = kind == 0 || (kind == 1 && y < 0.0) || (kind == 2 && y > 0.0) ? y : 0.0;
+      qp_solution_.y_constraints[r] = yr;
+      if (kind != 0) slack_bound[rows_[r].stage - 1] += std::abs(yr);
     }
     if (slack_bound.maxCoeff() > 0.0) return false;
     qp_solution_.x.head(nv) = hard.x;
     qp_solution_.x.tail(nsl_).setZero();
     qp_solution_.y_bounds.head(nv) = hard.y_bounds;
-    qp_solution_.y_constraints = hard.y_constraints;
     qp_solution_.iterations = hard.iterations;
     qp_solution_.status = hard.status;
     qp_solution_.objective = hard.objective;
@@ -547,14 +555,17 @@ class RtiSolver {
     qp_.g.head(nv) = hard.g;
     qp_.lb.head(nv) = hard.lb;
     qp_.ub.head(nv) = hard.ub;
-    qp_.lbA = hard.lbA;
-    qp_.ubA = hard.ubA;
+    for (int r = 0; r < nc_; ++r) {
+      const int h = soft_to_hard_[r];
+      qp_.lbA[r] = rows_[r].kind == 2 ? -kInf : hard.lbA[h];
+      qp_.ubA[r] = rows_[r].kind == 1 ? kInf : hard.ubA[h];
+      qp_.A.row(r).head(nv) = hard.A.row(h);
+    }
     if (riccati_) {
       qp_.L.topLeftCorner(nv, nv) = hard.L;
     } else {
       qp_.H.topLeftCorner(nv, nv) = hard.H;
     }
-    qp_.A.leftCols(nv) = hard.A;
   }
 
   // Dense condensing of the Hessian and the constraint rows (independent of x0).
@@ -604,10 +615,10 @@ class RtiSolver {
         qp.H.template block<kNu, kNu>(UPos(j), UPos(j)) = 0.5 * (hjj + hjj.transpose());
       }
     }
-    for (int r = 0; r < nc_; ++r) {
-      const Row& row = rows_[r];
+    for (int h = 0; h < nch_; ++h) {
+      const Row& row = hard_rows_[h];
       for (int j = 0; j < row.stage; ++j) {
-        qp.A.template block<1, kNu>(r, UPos(j)) = G(row.stage - 1, j).row(row.index);
+        qp.A.template block<1, kNu>(h, UPos(j)) = G(row.stage - 1, j).row(row.index);
       }
     }
   }
@@ -747,8 +758,8 @@ class RtiSolver {
       feasible = feasible && (u_new.array() >= lbu_[k].array()).all() &&
                  (u_new.array() <= ubu_[k].array()).all();
     }
-    for (int r = 0; r < nc_ && feasible; ++r) {
-      const Row& row = rows_[r];
+    for (int h = 0; h < nch_ && feasible; ++h) {
+      const Row& row = hard_rows_[h];
       const double v = x_[row.stage][row.index] + dx_[row.stage][row.index];
       feasible = v >= lbx_[row.stage][row.index] && v <= ubx_[row.stage][row.index];
     }
@@ -980,8 +991,12 @@ class RtiSolver {
   Problem problem_;
   RtiSettings settings_;
   StateBoundLayout layout_;
-  int n_ = 0, nsl_ = 0, nz_ = 0, nc_ = 0;
-  std::vector<Row> rows_;
+  int n_ = 0, nsl_ = 0, nz_ = 0, nc_ = 0, nch_ = 0;
+  // Rows of the (soft) QP: a soft component has a lower and an upper row, each with the
+  // stage's slack. Rows of the hard QP (HardQp): one two-sided row per component and
+  // stage; soft_to_hard_ maps the first onto the second.
+  std::vector<Row> rows_, hard_rows_;
+  std::vector<int> soft_to_hard_;
   std::vector<X> x_;
   std::vector<U> u_;
   std::vector<Y> yref_;
