@@ -572,10 +572,19 @@ class RtiSolver {
   void Condense() {
     condensed_ = true;
     qp::DenseQp& qp = HardQp();
-    // G(k, j) = d x_{k+1} / d u_j for j <= k.
+    // G(k, j) = d x_{k+1} / d u_j for j <= k. Without a structured product: only the rows
+    // of the input-reachable states (the others are zero in every G).
     for (int j = 0; j < n_; ++j) {
       G(j, j) = b_[j];
-      for (int k = j + 1; k < n_; ++k) MultiplyA(k, G(k - 1, j), &G(k, j));
+      for (int k = j + 1; k < n_; ++k) {
+        if constexpr (kStructuredA) {
+          MultiplyA(k, G(k - 1, j), &G(k, j));
+        } else {
+          MU& out = G(k, j);
+          for (int i : reach_) out.row(i).setZero();
+          a_reach_pattern_.AddProduct(a_[k], G(k - 1, j), &out);
+        }
+      }
     }
     if (riccati_) {
       // Cholesky factor of the condensed Hessian from the Riccati recursion (Riccati()):
@@ -587,8 +596,15 @@ class RtiSolver {
       for (int k = 0; k < n_; ++k) l.template block<kNu, kNu>(UPos(k), UPos(k)) = l_diag_[k];
       for (int k = 1; k < n_; ++k) {
         for (int j = 0; j < k; ++j) {
-          l.template block<kNu, kNu>(UPos(j), UPos(k)).noalias() =
-              (k_gain_[k] * G(k - 1, j)).transpose();
+          if constexpr (kStructuredA) {
+            l.template block<kNu, kNu>(UPos(j), UPos(k)).noalias() =
+                (k_gain_[k] * G(k - 1, j)).transpose();
+          } else {
+            // Over the states where both Kt_k and G can be nonzero.
+            Mat<kNu, kNu> kg = Mat<kNu, kNu>::Zero();
+            for (int i : gain_reach_) kg.noalias() += k_gain_[k].col(i) * G(k - 1, j).row(i);
+            l.template block<kNu, kNu>(UPos(j), UPos(k)) = kg.transpose();
+          }
         }
       }
     } else {
@@ -881,6 +897,7 @@ class RtiSolver {
                              settings_.integrator_steps, &a, &b);
     a_pattern_.SetFromWritten(a);
     b_pattern_.SetFromWritten(b);
+    FindReachableStates();
     Y y;
     YN yn;
     yx_buf_->setConstant(kNaN);
@@ -910,6 +927,30 @@ class RtiSolver {
     qn_pattern_.Reserve(kNx, kNx);
     s_pattern_.Reserve(kNu, kNx);
     BuildCostPatterns();
+  }
+
+  // reach_: the states the inputs can move (rows of B_k, closed under A_k: a state whose
+  // dynamics involve a reachable one is reachable); the other rows of G are zero.
+  void FindReachableStates() {
+    std::vector<char> in(kNx, 0);
+    for (const auto& e : b_pattern_.entries()) in[e.row] = 1;
+    for (bool changed = true; changed;) {
+      changed = false;
+      for (const auto& e : a_pattern_.entries()) {
+        if (in[e.col] && !in[e.row]) {
+          in[e.row] = 1;
+          changed = true;
+        }
+      }
+    }
+    reach_.clear();
+    for (int i = 0; i < kNx; ++i) {
+      if (in[i]) reach_.push_back(i);
+    }
+    Eigen::Array<bool, kNx, kNx> mask = Eigen::Array<bool, kNx, kNx>::Constant(false);
+    for (const auto& e : a_pattern_.entries()) mask(e.row, e.col) = in[e.row] && in[e.col];
+    a_reach_pattern_.Reserve(kNx, kNx);
+    a_reach_pattern_.SetFromMask(mask);
   }
 
   // Nonzeros of Q_k, Q_N and S_k for the current weights (rows with zero weight drop out).
@@ -969,6 +1010,11 @@ class RtiSolver {
     nr_ = static_cast<int>(rel_.size());
     riccati_ = kRiccatiCondensing || nr_ <= kMaxCompact;
     compact_ = !kRiccatiCondensing && riccati_;
+    // Columns of Kt_k that can be nonzero (all, or rel_ when compact) and rows of G likewise.
+    gain_reach_.clear();
+    for (int i : reach_) {
+      if (!compact_ || in[i]) gain_reach_.push_back(i);
+    }
     if (compact_) {
       Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic> mask =
           Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic>::Constant(nr_, nr_, false);
@@ -1019,6 +1065,9 @@ class RtiSolver {
   std::vector<Mat<kNu, kNx>> k_gain_;
   std::vector<MU> g_;
   SparsityPattern a_pattern_, b_pattern_, q_pattern_, qn_pattern_, s_pattern_;
+  // Input-reachable states, A_k on them, and those among them that the gains Kt_k use.
+  std::vector<int> reach_, gain_reach_;
+  SparsityPattern a_reach_pattern_;
   std::vector<std::vector<int>> yx_cols_, yu_cols_, ynx_cols_;
   // Residual Jacobian buffers (on the heap: kNy x kNx is large for F6), zero off-pattern.
   std::unique_ptr<Mat<kNy, kNx>> yx_buf_ = std::make_unique<Mat<kNy, kNx>>();
