@@ -271,6 +271,7 @@ struct DenseQpSolver::Workspace {
   ProductFormQ Q;     // nv x nv orthogonal, J = L^-T Q
   Eigen::MatrixXd R;  // nv x nv, upper triangular block q x q is used
   Eigen::VectorXd x, d, z, r, u, w, v, lt;
+  Eigen::VectorXd lg;  // L^-1 g of the current solve
   Eigen::VectorXd ax;  // nc, A x at the last scan
   std::array<int, kCandidates> cand_id{};
   std::array<int, kCandidates> cand_sign{};
@@ -308,6 +309,7 @@ DenseQpSolver::Workspace::Workspace(const DenseQpDims& dims, const QpSettings& s
       w(dims.nv),
       v(dims.nv),
       lt(dims.nv),
+      lg(dims.nv),
       ax(dims.nc),
       active_id(dims.nv),
       active_sign(dims.nv),
@@ -324,6 +326,7 @@ DenseQpSolver::Workspace::Workspace(const DenseQpDims& dims, const QpSettings& s
   w.setZero();
   v.setZero();
   lt.setZero();
+  lg.setZero();
   ax.setZero();
   chol.setIdentity();
 }
@@ -383,19 +386,22 @@ void DenseQpSolver::Workspace::InitQ() {
 }
 
 void DenseQpSolver::Workspace::ComputeStep(int id, int sign, double* zn, double* dn2, bool steps) {
-  // lt = L^-1 n (for n = +-e_j only rows j.. are nonzero), d = Q' lt.
+  // lt = L^-1 n; with the leading zeros of n, lt has them too and only the trailing block
+  // of L is used (n = +-e_j: rows j..; condensed MPC rows: the inputs before their stage).
+  // d = Q' lt.
   const auto& l = *factor;
+  int first = 0;
   if (id < nv) {
-    lt.head(id).setZero();
-    lt.tail(nv - id).setZero();
+    lt.setZero();
     lt[id] = static_cast<double>(sign);
-    l.bottomRightCorner(nv - id, nv - id)
-        .triangularView<Eigen::Lower>()
-        .solveInPlace(lt.tail(nv - id));
+    first = id;
   } else {
     lt = static_cast<double>(sign) * problem->A.row(id - nv).transpose();
-    l.triangularView<Eigen::Lower>().solveInPlace(lt);
+    while (first < nv - 1 && lt[first] == 0.0) ++first;
   }
+  l.bottomRightCorner(nv - first, nv - first)
+      .triangularView<Eigen::Lower>()
+      .solveInPlace(lt.tail(nv - first));
   d = lt;
   Q.ApplyTransposed(&d);
   const int m = nv - q;
@@ -612,9 +618,7 @@ void DenseQpSolver::Workspace::Refine(bool clamp) {
   for (int k = 0; k < q; ++k) v[k] = Rhs(active_id[k], active_sign[k]);
   R.topLeftCorner(q, q).transpose().triangularView<Eigen::Lower>().solveInPlace(v.head(q));
   const auto& l = *factor;
-  lt = problem->g;
-  l.triangularView<Eigen::Lower>().solveInPlace(lt);
-  w = lt;
+  w = lg;
   Q.ApplyTransposed(&w);
   const int m = nv - q;
   x.head(q) = v.head(q);
@@ -727,8 +731,9 @@ QpStatus DenseQpSolver::Workspace::Run(const DenseQp& qp, QpSolution* sol) {
   }
   const double min_pivot = factor->diagonal().cwiseAbs2().minCoeff();
   if (!(min_pivot > kPivotTol * max_h)) return QpStatus::kNotConvex;
-  x = -qp.g;
-  factor->triangularView<Eigen::Lower>().solveInPlace(x);
+  lg = qp.g;
+  factor->triangularView<Eigen::Lower>().solveInPlace(lg);
+  x = -lg;
   factor->transpose().triangularView<Eigen::Upper>().solveInPlace(x);
   u.setZero();
 
