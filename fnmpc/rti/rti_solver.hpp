@@ -356,12 +356,15 @@ class RtiSolver {
   /// raised and counted. Does not shift: call Shift() before the next sampling time.
   RtiStatus Step(const X& x0, U* u0) {
     Stopwatch sw;
-    const double cpu0 = ThreadCpuSeconds();
     stats_.qp_iterations = 0;
     stats_.sqp_iterations = 0;
     stats_.kkt = -1.0;
     const bool first = first_call_;
     const int cap = first ? settings_.max_initial_iterations : settings_.max_iterations;
+    // The CPU budget is checked only between iterations of a later call; pure RTI
+    // (max_iterations = 1) never reads the thread CPU clock, a system call of about 0.5 us.
+    const bool budgeted = !first && cap > 1;
+    const double cpu0 = budgeted ? ThreadCpuSeconds() : 0.0;
     RtiStatus status = RtiStatus::kSuccess;
     const U fallback_u = u_[0];
     for (int it = 0; it < cap; ++it) {
@@ -375,7 +378,7 @@ class RtiSolver {
       if (it + 1 >= cap) break;
       stats_.kkt = ComputeKkt(x0);
       if (stats_.kkt < settings_.kkt_threshold) break;
-      if (!first && ThreadCpuSeconds() - cpu0 > settings_.cpu_budget) break;
+      if (budgeted && ThreadCpuSeconds() - cpu0 > settings_.cpu_budget) break;
     }
     stats_.fallback = status != RtiStatus::kSuccess;
     if (stats_.fallback) {
