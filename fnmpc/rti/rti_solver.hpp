@@ -834,24 +834,50 @@ class RtiSolver {
   }
   template <class In, class Out>
   void AddATransposed(int k, const In& in, Out* out) const {
-    a_pattern_.AddTransposedProduct(a_[k], in, out);
+    if constexpr (kStructuredA) {
+      typename Out::PlainObject t;
+      Model::MultiplyTransitionTransposed(a_[k], in, &t);
+      *out += t;
+    } else {
+      a_pattern_.AddTransposedProduct(a_[k], in, out);
+    }
   }
+  // Small nx: B_k, Q_k and S_k as dense fixed-size products (their entries off the pattern
+  // are zero). A loop over a handful of structural nonzeros is slower there: consecutive
+  // entries update the same output entry, a chain of dependent loads and stores.
+  static constexpr bool kDenseCost = kNx <= 16;
   template <class In, class Out>
   void AddB(int k, const In& in, Out* out) const {
-    b_pattern_.AddProduct(b_[k], in, out);
+    if constexpr (kDenseCost) {
+      out->noalias() += b_[k] * in;
+    } else {
+      b_pattern_.AddProduct(b_[k], in, out);
+    }
   }
   template <class In, class Out>
   void AddBTransposed(int k, const In& in, Out* out) const {
-    b_pattern_.AddTransposedProduct(b_[k], in, out);
+    if constexpr (kDenseCost) {
+      out->noalias() += b_[k].transpose() * in;
+    } else {
+      b_pattern_.AddTransposedProduct(b_[k], in, out);
+    }
   }
   // k = N is the terminal cost.
   template <class In, class Out>
   void AddQ(int k, const In& in, Out* out) const {
-    (k == n_ ? qn_pattern_ : q_pattern_).AddProduct(q_mat_[k], in, out);
+    if constexpr (kDenseCost) {
+      out->noalias() += q_mat_[k] * in;
+    } else {
+      (k == n_ ? qn_pattern_ : q_pattern_).AddProduct(q_mat_[k], in, out);
+    }
   }
   template <class In, class Out>
   void AddS(int k, const In& in, Out* out) const {
-    s_pattern_.AddProduct(s_mat_[k], in, out);
+    if constexpr (kDenseCost) {
+      out->noalias() += s_mat_[k] * in;
+    } else {
+      s_pattern_.AddProduct(s_mat_[k], in, out);
+    }
   }
 
   // Gauss-Newton blocks of node k from the residual Jacobians, over the nonzero columns
