@@ -9,17 +9,20 @@
 
 namespace fnmpc::rti::benchmark {
 
-std::string_view ToString(Scenario s) {
-  return s == Scenario::kNominal ? "nominal" : "aggressive";
-}
+std::string_view ToString(Scenario s) { return s == Scenario::kNominal ? "nominal" : "aggressive"; }
 
 std::string_view ToString(ProblemId p) {
   switch (p) {
-    case ProblemId::kL: return "L";
-    case ProblemId::kF2: return "F2";
-    case ProblemId::kF6: return "F6";
-    case ProblemId::kF2Reduced: return "F2-reduced";
-    case ProblemId::kF6Reduced: return "F6-reduced";
+    case ProblemId::kL:
+      return "L";
+    case ProblemId::kF2:
+      return "F2";
+    case ProblemId::kF6:
+      return "F6";
+    case ProblemId::kF2Reduced:
+      return "F2-reduced";
+    case ProblemId::kF6Reduced:
+      return "F6-reduced";
   }
   return "?";
 }
@@ -36,7 +39,7 @@ RtiSettings SpecSettings() {
 }
 
 ReferenceTrajectory::ReferenceTrajectory(Scenario scenario) {
-  const std::array<Vec3, 6> tour{Vec3(0, 0, 1),   Vec3(1.5, 0, 1.5),  Vec3(1.5, 1.5, 1),
+  const std::array<Vec3, 6> tour{Vec3(0, 0, 1),     Vec3(1.5, 0, 1.5), Vec3(1.5, 1.5, 1),
                                  Vec3(0, 1.5, 1.5), Vec3(-1, 0.75, 1), Vec3(0, 0, 1)};
   const int laps = scenario == Scenario::kNominal ? 1 : 4;
   leg_duration_ = scenario == Scenario::kNominal ? 4.0 : 1.2;
@@ -201,6 +204,7 @@ Vec<9> SetReducedFollowerStage(ReducedFollowerSolver<Nn>* solver, const Vec<6>& 
   const double ts = solver->settings().sample_time;
   Vec<Problem::kNp> p;
   p[0] = 0.0;  // psi_ref
+  for (int j = 0; j < Nn; ++j) p.template segment<3>(Problem::ParamVel(j)) = nb[j].vel;
   Vec<9> lb = Vec<9>::Constant(-kInf), ub = Vec<9>::Constant(kInf);
   lb.segment<3>(3).setConstant(-kMaxVel);
   ub.segment<3>(3).setConstant(kMaxVel);
@@ -210,7 +214,6 @@ Vec<9> SetReducedFollowerStage(ReducedFollowerSolver<Nn>* solver, const Vec<6>& 
     for (int j = 0; j < Nn; ++j) {
       const Vec3 c = nb[j].rel_pos + t * nb[j].vel;  // constant-velocity prediction
       p.template segment<3>(Problem::ParamRelPos(j)) = c;
-      p.template segment<3>(Problem::ParamVel(j)) = nb[j].vel;
       // -b <= c - s <= b  <=>  c - b <= s <= c + b, intersected over neighbours.
       s_lo = s_lo.cwiseMax(c - kRelPosBound);
       s_hi = s_hi.cwiseMin(c + kRelPosBound);
@@ -246,17 +249,15 @@ ReducedFollowerSolver<Nn> MakeReducedFollowerSolver(
   return solver;
 }
 
-#define FNMPC_INSTANTIATE(NN)                                                                   \
-  template std::array<Vec3, NN> DesiredOffsets<NN>();                                           \
-  template Vec<6 + 8 * NN> FollowerState<NN>(const Vec<6>&,                                     \
-                                             const std::array<NeighbourState, NN>&);            \
-  template FollowerSolver<NN> MakeFollowerSolver<NN>(                                           \
-      const Vec<6>&, const std::array<NeighbourState, NN>&, const RtiSettings&,                 \
-      ocp::TargetFrame);                                                                        \
-  template ReducedFollowerSolver<NN> MakeReducedFollowerSolver<NN>(                             \
-      const Vec<6>&, const std::array<NeighbourState, NN>&, const RtiSettings&,                 \
-      ocp::TargetFrame);                                                                        \
-  template Vec<9> SetReducedFollowerStage<NN>(ReducedFollowerSolver<NN>*, const Vec<6>&,        \
+#define FNMPC_INSTANTIATE(NN)                                                                      \
+  template std::array<Vec3, NN> DesiredOffsets<NN>();                                              \
+  template Vec<6 + 8 * NN> FollowerState<NN>(const Vec<6>&,                                        \
+                                             const std::array<NeighbourState, NN>&);               \
+  template FollowerSolver<NN> MakeFollowerSolver<NN>(                                              \
+      const Vec<6>&, const std::array<NeighbourState, NN>&, const RtiSettings&, ocp::TargetFrame); \
+  template ReducedFollowerSolver<NN> MakeReducedFollowerSolver<NN>(                                \
+      const Vec<6>&, const std::array<NeighbourState, NN>&, const RtiSettings&, ocp::TargetFrame); \
+  template Vec<9> SetReducedFollowerStage<NN>(ReducedFollowerSolver<NN>*, const Vec<6>&,           \
                                               const std::array<NeighbourState, NN>&);
 FNMPC_INSTANTIATE(2)
 FNMPC_INSTANTIATE(6)
@@ -289,8 +290,8 @@ double HardStateViolation(const Solver& solver) {
       if (layout.soft[c]) continue;
       const int i = layout.indices[c];
       const double v = solver.states()[k][i];
-      worst = std::max({worst, solver.lower_state_bound(k)[i] - v,
-                        v - solver.upper_state_bound(k)[i]});
+      worst =
+          std::max({worst, solver.lower_state_bound(k)[i] - v, v - solver.upper_state_bound(k)[i]});
     }
   }
   return worst;
@@ -416,11 +417,21 @@ ClosedLoopResult RunClosedLoop(ProblemId problem, Scenario scenario, int steps,
   if (steps < 0) steps = ReferenceTrajectory(scenario).num_steps();
   ClosedLoopResult r;
   switch (problem) {
-    case ProblemId::kL: r = RunLeader(scenario, steps, settings); break;
-    case ProblemId::kF2: r = RunFollower<2, false>(scenario, steps, settings); break;
-    case ProblemId::kF6: r = RunFollower<6, false>(scenario, steps, settings); break;
-    case ProblemId::kF2Reduced: r = RunFollower<2, true>(scenario, steps, settings); break;
-    case ProblemId::kF6Reduced: r = RunFollower<6, true>(scenario, steps, settings); break;
+    case ProblemId::kL:
+      r = RunLeader(scenario, steps, settings);
+      break;
+    case ProblemId::kF2:
+      r = RunFollower<2, false>(scenario, steps, settings);
+      break;
+    case ProblemId::kF6:
+      r = RunFollower<6, false>(scenario, steps, settings);
+      break;
+    case ProblemId::kF2Reduced:
+      r = RunFollower<2, true>(scenario, steps, settings);
+      break;
+    case ProblemId::kF6Reduced:
+      r = RunFollower<6, true>(scenario, steps, settings);
+      break;
   }
   r.problem = problem;
   r.scenario = scenario;
@@ -453,7 +464,8 @@ ClosedLoopSummary Summarize(const ClosedLoopResult& result) {
   s.qp_iterations_max = Percentile(qpit, 1.0);
   s.kkt_median = Percentile(kkt, 0.5);
   s.kkt_max = Percentile(kkt, 1.0);
-  s.rms_error_m = result.steps.empty() ? 0.0 : std::sqrt(sq / static_cast<double>(result.steps.size()));
+  s.rms_error_m =
+      result.steps.empty() ? 0.0 : std::sqrt(sq / static_cast<double>(result.steps.size()));
   s.fallbacks = result.fallbacks;
   return s;
 }

@@ -228,17 +228,18 @@ class RtiSolver {
       d_[k] = next - x_[k + 1];
       problem_.StageResidual(x_[k], u_[k], params_[k], &y, &yx, &yu);
       const Y wr = w_.cwiseProduct(y - yref_[k]);
-      GaussNewtonBlocks(yx, &yu, w_, wr, yx_cols_, yu_cols_, q_pattern_, k);
+      GaussNewtonBlocks(yx, &yu, w_, wr, weighted_rows_, yx_cols_, yu_cols_, q_pattern_, k);
       finite = finite && a_pattern_.AllFinite(a_[k]) && b_pattern_.AllFinite(b_[k]);
-      finite = finite && d_[k].allFinite() && wr.allFinite();
+      // (NaN in a weighted residual reaches q_k or r_k; zero-weight rows do not matter)
+      finite = finite && d_[k].allFinite() && q_vec_[k].allFinite() && r_vec_[k].allFinite();
     }
     {
       YN yn;
       Mat<kNyN, kNx>& ynx = *ynx_buf_;
       problem_.TerminalResidual(x_[n_], params_[n_], &yn, &ynx);
       const YN wr = w_n_.cwiseProduct(yn - yref_n_);
-      GaussNewtonBlocks<Mat<kNyN, kNx>, Mat<kNyN, kNu>>(ynx, nullptr, w_n_, wr, ynx_cols_, {},
-                                                        qn_pattern_, n_);
+      GaussNewtonBlocks<Mat<kNyN, kNx>, Mat<kNyN, kNu>>(ynx, nullptr, w_n_, wr, weighted_rows_n_,
+                                                        ynx_cols_, {}, qn_pattern_, n_);
       finite = finite && q_vec_[n_].allFinite();
     }
     if (riccati_) {
@@ -880,13 +881,13 @@ class RtiSolver {
     }
   }
 
-  // Gauss-Newton blocks of node k from the residual Jacobians, over the nonzero columns
-  // of each residual row: Q_k = Jx' W Jx, S_k = Ju' W Jx, R_k = Ju' W Ju, q_k = Jx' W r,
-  // r_k = Ju' W r (the entries of q_pattern outside the rows' products are never written
-  // and stay zero; R_k and r_k only with ju).
+  // Gauss-Newton blocks of node k from the residual Jacobians, over the rows with a nonzero
+  // weight (rows) and the nonzero columns of each: Q_k = Jx' W Jx, S_k = Ju' W Jx, R_k = Ju' W Ju,
+  // q_k = Jx' W r, r_k = Ju' W r (the entries of q_pattern outside the rows' products are never
+  // written and stay zero; R_k and r_k only with ju).
   template <class Jx, class Ju, class Wv, class Rv>
   void GaussNewtonBlocks(const Jx& jx, const Ju* ju, const Wv& w, const Rv& wr,
-                         const std::vector<std::vector<int>>& x_cols,
+                         const std::vector<int>& rows, const std::vector<std::vector<int>>& x_cols,
                          const std::vector<std::vector<int>>& u_cols,
                          const SparsityPattern& q_pattern, int k) {
     for (const auto& e : q_pattern.entries()) q_mat_[k](e.row, e.col) = 0.0;
@@ -896,8 +897,7 @@ class RtiSolver {
       r_mat_[k].setZero();
       r_vec_[k].setZero();
     }
-    for (int r = 0; r < static_cast<int>(x_cols.size()); ++r) {
-      if (w[r] == 0.0) continue;
+    for (int r : rows) {
       for (int a : x_cols[r]) {
         const double ya = jx(r, a);
         q_vec_[k][a] += ya * wr[r];
@@ -954,6 +954,8 @@ class RtiSolver {
     columns(ynx_mask, &ynx_cols_);
     q_pattern_.Reserve(kNx, kNx);
     qn_pattern_.Reserve(kNx, kNx);
+    weighted_rows_.reserve(kNy);
+    weighted_rows_n_.reserve(kNyN);
     s_pattern_.Reserve(kNu, kNx);
     BuildCostPatterns();
   }
@@ -988,6 +990,14 @@ class RtiSolver {
     Eigen::Array<bool, kNx, kNx> q = Eigen::Array<bool, kNx, kNx>::Constant(false);
     Eigen::Array<bool, kNx, kNx> qn = Eigen::Array<bool, kNx, kNx>::Constant(false);
     Eigen::Array<bool, kNu, kNx> sm = Eigen::Array<bool, kNu, kNx>::Constant(false);
+    weighted_rows_.clear();
+    weighted_rows_n_.clear();
+    for (int r = 0; r < kNy; ++r) {
+      if (w_[r] != 0.0) weighted_rows_.push_back(r);
+    }
+    for (int r = 0; r < kNyN; ++r) {
+      if (w_n_[r] != 0.0) weighted_rows_n_.push_back(r);
+    }
     for (int r = 0; r < kNy; ++r) {
       if (w_[r] == 0.0) continue;
       for (int a : yx_cols_[r]) {
@@ -1098,6 +1108,8 @@ class RtiSolver {
   std::vector<int> reach_, gain_reach_;
   SparsityPattern a_reach_pattern_;
   std::vector<std::vector<int>> yx_cols_, yu_cols_, ynx_cols_;
+  // Residual rows with a nonzero weight (stage, terminal): the only ones in Q, S, R, q, r.
+  std::vector<int> weighted_rows_, weighted_rows_n_;
   // Residual Jacobian buffers (on the heap: kNy x kNx is large for F6), zero off-pattern.
   std::unique_ptr<Mat<kNy, kNx>> yx_buf_ = std::make_unique<Mat<kNy, kNx>>();
   std::unique_ptr<Mat<kNy, kNu>> yu_buf_ = std::make_unique<Mat<kNy, kNu>>();
