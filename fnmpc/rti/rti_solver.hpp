@@ -846,10 +846,10 @@ class RtiSolver {
   // Small nx: B_k, Q_k and S_k as dense fixed-size products (their entries off the pattern
   // are zero). A loop over a handful of structural nonzeros is slower there: consecutive
   // entries update the same output entry, a chain of dependent loads and stores.
-  static constexpr bool kDenseCost = kNx <= 16;
+  static constexpr bool kDenseStageProducts = kNx <= 16;
   template <class In, class Out>
   void AddB(int k, const In& in, Out* out) const {
-    if constexpr (kDenseCost) {
+    if constexpr (kDenseStageProducts) {
       out->noalias() += b_[k] * in;
     } else {
       b_pattern_.AddProduct(b_[k], in, out);
@@ -857,7 +857,7 @@ class RtiSolver {
   }
   template <class In, class Out>
   void AddBTransposed(int k, const In& in, Out* out) const {
-    if constexpr (kDenseCost) {
+    if constexpr (kDenseStageProducts) {
       out->noalias() += b_[k].transpose() * in;
     } else {
       b_pattern_.AddTransposedProduct(b_[k], in, out);
@@ -866,7 +866,7 @@ class RtiSolver {
   // k = N is the terminal cost.
   template <class In, class Out>
   void AddQ(int k, const In& in, Out* out) const {
-    if constexpr (kDenseCost) {
+    if constexpr (kDenseStageProducts) {
       out->noalias() += q_mat_[k] * in;
     } else {
       (k == n_ ? qn_pattern_ : q_pattern_).AddProduct(q_mat_[k], in, out);
@@ -874,7 +874,7 @@ class RtiSolver {
   }
   template <class In, class Out>
   void AddS(int k, const In& in, Out* out) const {
-    if constexpr (kDenseCost) {
+    if constexpr (kDenseStageProducts) {
       out->noalias() += s_mat_[k] * in;
     } else {
       s_pattern_.AddProduct(s_mat_[k], in, out);
