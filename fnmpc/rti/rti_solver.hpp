@@ -960,20 +960,29 @@ class RtiSolver {
     BuildCostPatterns();
   }
 
+  // Closes the state set *in under the couplings of A_k: downstream adds every state whose
+  // dynamics involve a member, upstream every state that enters a member's dynamics.
+  void CloseUnderDynamics(bool downstream, std::vector<char>* in) const {
+    std::vector<char>& set = *in;
+    for (bool changed = true; changed;) {
+      changed = false;
+      for (const auto& e : a_pattern_.entries()) {
+        const int from = downstream ? e.col : e.row;
+        const int to = downstream ? e.row : e.col;
+        if (set[from] && !set[to]) {
+          set[to] = 1;
+          changed = true;
+        }
+      }
+    }
+  }
+
   // reach_: the states the inputs can move (rows of B_k, closed under A_k: a state whose
   // dynamics involve a reachable one is reachable); the other rows of G are zero.
   void FindReachableStates() {
     std::vector<char> in(kNx, 0);
     for (const auto& e : b_pattern_.entries()) in[e.row] = 1;
-    for (bool changed = true; changed;) {
-      changed = false;
-      for (const auto& e : a_pattern_.entries()) {
-        if (in[e.col] && !in[e.row]) {
-          in[e.row] = 1;
-          changed = true;
-        }
-      }
-    }
+    CloseUnderDynamics(/*downstream=*/true, &in);
     reach_.clear();
     for (int i = 0; i < kNx; ++i) {
       if (in[i]) reach_.push_back(i);
@@ -998,15 +1007,13 @@ class RtiSolver {
     for (int r = 0; r < kNyN; ++r) {
       if (w_n_[r] != 0.0) weighted_rows_n_.push_back(r);
     }
-    for (int r = 0; r < kNy; ++r) {
-      if (w_[r] == 0.0) continue;
+    for (int r : weighted_rows_) {
       for (int a : yx_cols_[r]) {
         for (int b : yx_cols_[r]) q(a, b) = true;
         for (int i : yu_cols_[r]) sm(i, a) = true;
       }
     }
-    for (int r = 0; r < kNyN; ++r) {
-      if (w_n_[r] == 0.0) continue;
+    for (int r : weighted_rows_n_) {
       for (int a : ynx_cols_[r]) {
         for (int b : ynx_cols_[r]) qn(a, b) = true;
       }
@@ -1029,15 +1036,7 @@ class RtiSolver {
     for (int i = 0; i < kNx; ++i) {
       in[i] = static_cast<char>(q.row(i).any() || qn.row(i).any() || sm.col(i).any());
     }
-    for (bool changed = true; changed;) {
-      changed = false;
-      for (const auto& e : a_pattern_.entries()) {
-        if (in[e.row] && !in[e.col]) {
-          in[e.col] = 1;
-          changed = true;
-        }
-      }
-    }
+    CloseUnderDynamics(/*downstream=*/false, &in);
     rel_.clear();
     std::vector<int> pos(kNx, -1);
     for (int i = 0; i < kNx; ++i) {
