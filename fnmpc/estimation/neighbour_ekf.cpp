@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "fnmpc/estimation/neighbour_ekf.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -54,6 +55,53 @@ void NeighbourEkfConfig::Validate() const {
   Require(r.noise2.x() > 0.0, "sensors.relative.noise2[0]", r.noise2.x(), "must be > 0");
   Require(r.range_noise_growth >= 0.0, "sensors.relative.range_noise_growth", r.range_noise_growth,
           "must be >= 0");
+  Require(relative_update == RelativeUpdate::kCartesian ||
+              relative_update == RelativeUpdate::kSpherical,
+          "relative_update", static_cast<double>(relative_update), "must be a RelativeUpdate");
+  Require(max_position_std > 0.0, "max_position_std", max_position_std, "must be > 0 (kInf: off)");
+  Require(max_velocity_std > 0.0, "max_velocity_std", max_velocity_std, "must be > 0 (kInf: off)");
+  Require(max_yaw_std > 0.0, "max_yaw_std", max_yaw_std, "must be > 0 (kInf: off)");
+  Require(max_staleness > 0.0, "max_staleness", max_staleness, "must be > 0 (kInf: off)");
+  Require(max_extrapolation >= 0.0 && std::isfinite(max_extrapolation), "max_extrapolation",
+          max_extrapolation, "must be finite and >= 0");
+  Require(max_time_jump > 0.0 && std::isfinite(max_time_jump), "max_time_jump", max_time_jump,
+          "must be finite and > 0");
+  Require(time_jump_reset_count >= 1, "time_jump_reset_count", time_jump_reset_count,
+          "must be >= 1");
+}
+
+void RelativeToCartesian(const RelativeObservation& o, const Vec3& own_euler,
+                         const Mat3& own_euler_cov, const SensorSpec& spec, Vec<4>* z,
+                         Mat<4, 4>* R) {
+  const double r = o.range;
+  const double cb = std::cos(o.bearing), sb = std::sin(o.bearing);
+  const double ce = std::cos(o.elevation), se = std::sin(o.elevation);
+  const Vec3 d(r * ce * cb, r * ce * sb, r * se);  // offset in the observer's body frame
+  Mat3 Rot;
+  std::array<Mat3, 3> dR;
+  RotationZyxPartials(own_euler, &Rot, &dR);
+  z->head<3>() = Rot * d;
+  (*z)(3) = WrapAngle(own_euler.z() + o.relative_yaw);
+  // d / d(range, bearing, elevation): the bearing column r cos(el) (-sin b, cos b, 0) vanishes
+  // at +-90 deg, where the bearing carries no information; nothing divides by it.
+  const Vec3 azimuth(-sb, cb, 0.0);
+  Mat<4, 4> Gz = Mat<4, 4>::Zero();
+  Gz.block<3, 1>(0, 0) = Rot * Vec3(ce * cb, ce * sb, se);
+  Gz.block<3, 1>(0, 1) = Rot * (r * ce * azimuth);
+  Gz.block<3, 1>(0, 2) = Rot * Vec3(-r * se * cb, -r * se * sb, r * ce);
+  Gz(3, 3) = 1.0;
+  Mat<4, 3> Ge = Mat<4, 3>::Zero();
+  for (int i = 0; i < 3; ++i) Ge.block<3, 1>(0, i) = dR[static_cast<std::size_t>(i)] * d;
+  Ge(3, 2) = 1.0;
+  const double sr = spec.noise.x() * (1.0 + spec.range_noise_growth * r);
+  const double vb = spec.noise.y() * spec.noise.y(), ve = spec.noise.z() * spec.noise.z();
+  const Vec<4> var(sr * sr, vb, ve, spec.noise2.x() * spec.noise2.x());
+  *R = Gz * var.asDiagonal() * Gz.transpose() + Ge * own_euler_cov * Ge.transpose();
+  // Second order: the azimuthal offset r cos(el + e_n) sin(b_n) has variance
+  // r^2 (cos^2 el + sin^2 el sigma_e^2) sigma_b^2; the linear part has only the first term.
+  const Vec3 a = Rot * azimuth;
+  R->topLeftCorner<3, 3>() += (r * r * vb * ve * se * se) * (a * a.transpose());
+  Symmetrize<4>(R);
 }
 
 Vec<4> RelativeMeasurementModel(const NeighbourStateVec& x, const Vec3& own_euler) {
@@ -106,17 +154,89 @@ NeighbourStateVec NeighbourEkf::state() const {
   return s_.initialized ? s_.x : NeighbourStateVec::Constant(kNaN);
 }
 
+NeighbourEkf::State NeighbourEkf::PredictedCopy(double t, const Vec3& own_velocity,
+                                                bool* capped) const {
+  State st = s_;
+  *capped = false;
+  if (!std::isfinite(t) || !own_velocity.allFinite()) return st;
+  double target = t;
+  if (t - st.time > config_.max_extrapolation) {
+    target = st.time + config_.max_extrapolation;
+    *capped = true;
+  }
+  Predict(target, own_velocity, &st);
+  return st;
+}
+
 NeighbourStateVec NeighbourEkf::StateAt(double t, const Vec3& own_velocity) const {
   if (!s_.initialized) return NeighbourStateVec::Constant(kNaN);
-  State st = s_;
-  Predict(t, own_velocity, &st);
-  return st.x;
+  bool capped = false;
+  return PredictedCopy(t, own_velocity, &capped).x;
+}
+
+NeighbourEstimate NeighbourEkf::EstimateAt(double t, const Vec3& own_velocity) const {
+  NeighbourEstimate out;
+  if (!s_.initialized) return out;
+  bool capped = false;
+  const State st = PredictedCopy(t, own_velocity, &capped);
+  EstimateHealth& h = out.health;
+  h.flags = 0;
+  const double tq = std::isfinite(t) ? std::max(t, st.time) : t;
+  h.extrapolation = tq - st.time;
+  h.position_std = std::sqrt(st.P.diagonal().segment<3>(Idx::kRelPos).maxCoeff());
+  h.velocity_std = std::sqrt(st.P.diagonal().segment<3>(Idx::kVel).maxCoeff());
+  h.attitude_std = std::sqrt(st.P(Idx::kYaw, Idx::kYaw));
+  const auto rel = static_cast<std::size_t>(SensorKind::kRelative);
+  h.staleness[rel] = tq - st.last_fused;
+  if (!std::isfinite(tq) || !own_velocity.allFinite() || !st.x.allFinite() || !st.P.allFinite()) {
+    h.Set(HealthFlag::kNonFinite);
+  }
+  if (!(h.position_std <= config_.max_position_std)) h.Set(HealthFlag::kPositionUncertain);
+  if (!(h.velocity_std <= config_.max_velocity_std)) h.Set(HealthFlag::kVelocityUncertain);
+  if (!(h.attitude_std <= config_.max_yaw_std)) h.Set(HealthFlag::kAttitudeUncertain);
+  if (std::isfinite(config_.max_staleness) && !(h.staleness[rel] <= config_.max_staleness)) {
+    h.stale_kinds |= 1u << static_cast<unsigned>(SensorKind::kRelative);
+    h.Set(HealthFlag::kStale);
+  }
+  if (capped) h.Set(HealthFlag::kExtrapolationLimit);
+  out.valid = h.ok();
+  out.time = st.time;
+  out.x = st.x;
+  out.covariance = st.P;
+  return out;
+}
+
+bool NeighbourEkf::TimeJumpRejected(double t) {
+  if (!std::isfinite(s_.time) || !(t > s_.time + config_.max_time_jump)) {
+    time_jump_count_ = 0;
+    return false;
+  }
+  const bool consistent =
+      time_jump_count_ > 0 && std::abs(t - time_jump_last_) <= config_.max_time_jump;
+  time_jump_count_ = consistent ? time_jump_count_ + 1 : 1;
+  time_jump_last_ = t;
+  if (time_jump_count_ < config_.time_jump_reset_count) return true;
+  // The clock really moved on: forget the neighbour; the next measurement re-initialises it.
+  time_jump_count_ = 0;
+  ++counters_.time_resets;
+  buffer_.Clear();
+  s_.initialized = false;
+  s_.x.setConstant(kNaN);
+  s_.time = kNaN;
+  s_.own_velocity.setConstant(kNaN);
+  s_.consecutive_gated = 0;
+  s_.last_fused = kNaN;
+  return false;
 }
 
 EkfStatus NeighbourEkf::PredictTo(double t, const Vec3& own_velocity) {
   if (!std::isfinite(t) || !own_velocity.allFinite()) {
     ++counters_.commands_rejected;
     return EkfStatus::kRejectedNonFinite;
+  }
+  if (TimeJumpRejected(t)) {
+    ++counters_.commands_rejected;
+    return EkfStatus::kRejectedTimeJump;
   }
   Event e;
   e.stamp = t;
@@ -155,6 +275,7 @@ EkfStatus NeighbourEkf::Process(const Measurement& m, const Vec3& own_euler,
   if (!(o.range > 0.0) || std::abs(o.elevation) > 0.5 * M_PI) {
     return finish(EkfStatus::kRejectedInvalid);
   }
+  if (TimeJumpRejected(m.stamp)) return finish(EkfStatus::kRejectedTimeJump);
   Event e;
   e.stamp = m.stamp;
   e.order = 1;
@@ -220,38 +341,19 @@ Mat<4, 4> NeighbourEkf::NoiseCovariance(const Event& e, const NeighbourStateVec&
 }
 
 void NeighbourEkf::InitFromMeasurement(const Event& e, State* s) const {
-  const RelativeObservation& o = e.m.relative;
-  const double cb = std::cos(o.bearing), sb = std::sin(o.bearing);
-  const double ce = std::cos(o.elevation), se = std::sin(o.elevation);
-  const Vec3 d(o.range * ce * cb, o.range * ce * sb, o.range * se);
-  Mat3 R;
-  std::array<Mat3, 3> dR;
-  RotationZyxPartials(e.own_euler, &R, &dR);
+  Vec<4> z;
+  Mat<4, 4> P4;
+  RelativeToCartesian(e.m.relative, e.own_euler, e.own_euler_cov, config_.sensors.relative, &z,
+                      &P4);
   const bool keep_motion = s->initialized;  // re-initialisation after repeated gating
   const Vec3 v = s->x.segment<3>(Idx::kVel);
   const double wz = s->x(Idx::kYawRate);
   const Mat3 Pv = s->P.block<3, 3>(Idx::kVel, Idx::kVel);
   const double Pw = s->P(Idx::kYawRate, Idx::kYawRate);
   s->x.setZero();
-  s->x.segment<3>(Idx::kRelPos) = R * d;
-  s->x(Idx::kYaw) = WrapAngle(e.own_euler.z() + o.relative_yaw);
-  // Linearised covariance of (dx, psi_j) from the measurement and own-attitude noise.
-  Mat<4, 4> Gz = Mat<4, 4>::Zero();
-  Mat3 Jd;
-  Jd.col(0) << ce * cb, ce * sb, se;
-  Jd.col(1) << -o.range * ce * sb, o.range * ce * cb, 0.0;
-  Jd.col(2) << -o.range * se * cb, -o.range * se * sb, o.range * ce;
-  Gz.topLeftCorner<3, 3>() = R * Jd;
-  Gz(3, 3) = 1.0;
-  Mat<4, 3> Ge = Mat<4, 3>::Zero();
-  for (int i = 0; i < 3; ++i) Ge.block<3, 1>(0, i) = dR[static_cast<std::size_t>(i)] * d;
-  Ge(3, 2) = 1.0;
-  const SensorSpec& spec = config_.sensors.relative;
-  const double sr = spec.noise.x() * (1.0 + spec.range_noise_growth * o.range);
-  Vec<4> var(sr * sr, spec.noise.y() * spec.noise.y(), spec.noise.z() * spec.noise.z(),
-             spec.noise2.x() * spec.noise2.x());
-  const Mat<4, 4> P4 =
-      Gz * var.asDiagonal() * Gz.transpose() + Ge * e.own_euler_cov * Ge.transpose();
+  s->x.segment<3>(Idx::kRelPos) = z.head<3>();
+  s->x(Idx::kYaw) = z(3);
+  // Covariance of (dx, psi_j): that of the converted measurement.
   s->P.setZero();
   s->P.topLeftCorner<3, 3>() = P4.topLeftCorner<3, 3>();
   s->P.block<3, 1>(Idx::kRelPos, Idx::kYaw) = P4.block<3, 1>(0, 3);
@@ -273,6 +375,29 @@ void NeighbourEkf::InitFromMeasurement(const Event& e, State* s) const {
   s->time = e.stamp;
   s->own_velocity = e.own_velocity;
   s->consecutive_gated = 0;
+  s->last_fused = e.stamp;
+}
+
+EkfStatus NeighbourEkf::UpdateSpherical(const Event& e, State* s) const {
+  const RelativeObservation& o = e.m.relative;
+  const Vec<4> h = RelativeMeasurementModel(s->x, e.own_euler);
+  const Vec<4> y(o.range - h(0), WrapAngle(o.bearing - h(1)), o.elevation - h(2),
+                 WrapAngle(o.relative_yaw - h(3)));
+  const Mat<4, kN> H = RelativeMeasurementJacobian(s->x, e.own_euler);
+  return KalmanUpdate<kN, 4>(y, H, NoiseCovariance(e, s->x), gate_, &s->x, &s->P).status;
+}
+
+EkfStatus NeighbourEkf::UpdateCartesian(const Event& e, State* s) const {
+  Vec<4> z;
+  Mat<4, 4> R;
+  RelativeToCartesian(e.m.relative, e.own_euler, e.own_euler_cov, config_.sensors.relative, &z, &R);
+  Vec<4> y;
+  y.head<3>() = z.head<3>() - s->x.segment<3>(Idx::kRelPos);
+  y(3) = WrapAngle(z(3) - s->x(Idx::kYaw));
+  Mat<4, kN> H = Mat<4, kN>::Zero();
+  H.block<3, 3>(0, Idx::kRelPos).setIdentity();
+  H(3, Idx::kYaw) = 1.0;
+  return KalmanUpdate<kN, 4>(y, H, R, gate_, &s->x, &s->P).status;
 }
 
 EkfStatus NeighbourEkf::Apply(const Event& e, State* s) const {
@@ -285,22 +410,20 @@ EkfStatus NeighbourEkf::Apply(const Event& e, State* s) const {
     return EkfStatus::kAccepted;
   }
   Predict(e.stamp, e.own_velocity, s);
-  const RelativeObservation& o = e.m.relative;
-  const Vec<4> h = RelativeMeasurementModel(s->x, e.own_euler);
-  Vec<4> y(o.range - h(0), WrapAngle(o.bearing - h(1)), o.elevation - h(2),
-           WrapAngle(o.relative_yaw - h(3)));
-  const Mat<4, kN> H = RelativeMeasurementJacobian(s->x, e.own_euler);
-  const UpdateResult r = KalmanUpdate<kN, 4>(y, H, NoiseCovariance(e, s->x), gate_, &s->x, &s->P);
-  if (r.status == EkfStatus::kAccepted) {
+  const EkfStatus status = config_.relative_update == RelativeUpdate::kCartesian
+                               ? UpdateCartesian(e, s)
+                               : UpdateSpherical(e, s);
+  if (status == EkfStatus::kAccepted) {
     s->consecutive_gated = 0;
     s->x(Idx::kYaw) = WrapAngle(s->x(Idx::kYaw));
-  } else if (r.status == EkfStatus::kRejectedGated &&
+    s->last_fused = e.stamp;
+  } else if (status == EkfStatus::kRejectedGated &&
              ++s->consecutive_gated >= config_.max_consecutive_gated) {
     InitFromMeasurement(e, s);
     ++s->gate_resets;
     return EkfStatus::kAccepted;
   }
-  return r.status;
+  return status;
 }
 
 }  // namespace fnmpc::estimation

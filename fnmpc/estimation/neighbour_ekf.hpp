@@ -23,6 +23,17 @@ struct NeighbourStateIndex {
 using NeighbourStateVec = Vec<NeighbourStateIndex::kSize>;
 using NeighbourStateCov = Mat<NeighbourStateIndex::kSize, NeighbourStateIndex::kSize>;
 
+/// How NeighbourEkf fuses a relative observation.
+enum class RelativeUpdate : int {
+  /// The observation is converted to a relative position in {m} (and the neighbour's yaw)
+  /// with the linearised covariance of the conversion; the update is linear (H = I). No
+  /// singularity: well defined straight above or below (see docs/estimation.md).
+  kCartesian = 0,
+  /// Legacy: EKF update in (range, bearing, elevation, relative yaw). The bearing Jacobian
+  /// grows as 1 / horizontal distance: diverges with a neighbour straight above or below.
+  kSpherical = 1,
+};
+
 /// Settings of NeighbourEkf. Measurement noise comes from `sensors.relative` (range std
 /// noise[0] * (1 + range_noise_growth * range), bearing noise[1], elevation noise[2],
 /// relative yaw noise2[0]).
@@ -39,6 +50,19 @@ struct NeighbourEkfConfig {
   double initial_yaw_rate_std = 0.5;  ///< neighbour yaw rate std at initialisation [rad/s]
   double gate_probability = 0.99999;  ///< chi-square gate on the 4-dim NIS
   int max_consecutive_gated = 50;     ///< then re-initialised from the measurement
+  RelativeUpdate relative_update = RelativeUpdate::kCartesian;  ///< measurement model
+
+  // Health (NeighbourEstimate::health, ::valid) and time guards. See docs/estimation.md.
+  double max_position_std = 0.5;   ///< dx std limit, largest axis [m]; kInf = off
+  double max_velocity_std = 2.0;   ///< v_j std limit [m/s] (above initial_velocity_std)
+  double max_yaw_std = 0.5;        ///< psi_j std limit [rad]
+  double max_staleness = 0.5;      ///< no accepted relative measurement for longer: stale [s]
+  double max_extrapolation = 0.5;  ///< StateAt / EstimateAt predict at most this far ahead [s]
+  /// Events stamped further ahead of the newest event are rejected (kRejectedTimeJump) [s];
+  /// `time_jump_reset_count` consecutive ones within this distance of each other make the
+  /// filter forget the neighbour (re-initialised by the next measurement; `time_resets`).
+  double max_time_jump = 1.0;
+  int time_jump_reset_count = 3;
 
   /// Throws std::invalid_argument naming the first invalid field.
   void Validate() const;
@@ -52,6 +76,27 @@ Mat<4, NeighbourStateIndex::kSize> RelativeMeasurementJacobian(const NeighbourSt
                                                                const Vec3& own_euler);
 /// Jacobian of RelativeMeasurementModel with respect to the own Euler angles (4 x 3).
 Mat<4, 3> RelativeMeasurementOwnAttitudeJacobian(const NeighbourStateVec& x, const Vec3& own_euler);
+
+/// Relative observation converted to z = (p_neighbour - p_self in {m} [m], neighbour yaw
+/// [rad]) with its covariance R: linearised (range, bearing, elevation, relative yaw)
+/// noise of `spec` (range std noise[0] * (1 + range_noise_growth * range)), the
+/// second-order bearing-elevation term r^2 sigma_b^2 sigma_e^2 sin^2(el) along the azimuth
+/// direction (keeps R positive definite at elevation +-90 deg), and the own-attitude
+/// covariance `own_euler_cov` [rad^2] mapped through the rotation.
+void RelativeToCartesian(const RelativeObservation& o, const Vec3& own_euler,
+                         const Mat3& own_euler_cov, const SensorSpec& spec, Vec<4>* z,
+                         Mat<4, 4>* R);
+
+/// Output of NeighbourEkf::EstimateAt.
+struct NeighbourEstimate {
+  /// Initialised and healthy: health.flags == 0 (dx, v_j and yaw stds within their limits,
+  /// a relative measurement within max_staleness, not extrapolated beyond the limit, finite).
+  bool valid = false;
+  EstimateHealth health;  ///< reasons; staleness[kRelative]; position_std is that of dx
+  double time = kNaN;     ///< time of validity of x [s]
+  NeighbourStateVec x = NeighbourStateVec::Constant(kNaN);           ///< NeighbourStateIndex
+  NeighbourStateCov covariance = NeighbourStateCov::Constant(kNaN);  ///< of x
+};
 
 /// EKF of one neighbour from relative range, bearing, elevation and relative yaw.
 ///
@@ -82,8 +127,11 @@ class NeighbourEkf {
   [[nodiscard]] NeighbourStateVec state() const;
   /// Covariance of state().
   [[nodiscard]] const NeighbourStateCov& covariance() const { return s_.P; }
-  /// State predicted to t with the own velocity held at own_velocity (no filter change).
+  /// State predicted to t with the own velocity held at own_velocity (no filter change);
+  /// at most `max_extrapolation` past the newest event (EstimateAt tells when capped).
   [[nodiscard]] NeighbourStateVec StateAt(double t, const Vec3& own_velocity) const;
+  /// State and covariance predicted as StateAt, with their health (valid, reasons).
+  [[nodiscard]] NeighbourEstimate EstimateAt(double t, const Vec3& own_velocity) const;
   /// Stamp of the newest event [s].
   [[nodiscard]] double time() const { return s_.time; }
   /// True once a measurement initialised the filter.
@@ -110,18 +158,27 @@ class NeighbourEkf {
     Vec3 own_velocity = Vec3::Constant(kNaN);  // own velocity at `time`
     int consecutive_gated = 0;
     std::int64_t gate_resets = 0;
+    double last_fused = kNaN;  // stamp of the newest accepted measurement
   };
 
   EkfStatus Apply(const Event& e, State* s) const;
   void Predict(double t, const Vec3& own_velocity, State* s) const;
   void InitFromMeasurement(const Event& e, State* s) const;
   [[nodiscard]] Mat<4, 4> NoiseCovariance(const Event& e, const NeighbourStateVec& x) const;
+  EkfStatus UpdateSpherical(const Event& e, State* s) const;
+  EkfStatus UpdateCartesian(const Event& e, State* s) const;
+  // Predicts a copy to t (capped at max_extrapolation); *capped tells whether it was.
+  State PredictedCopy(double t, const Vec3& own_velocity, bool* capped) const;
+  // See VehicleEkf::TimeJumpRejected; the re-anchor forgets the neighbour.
+  bool TimeJumpRejected(double t);
 
   NeighbourEkfConfig config_;
   double gate_ = 0.0;
   State s_;
   ReplayBuffer<Event, State> buffer_;
   EkfCounters counters_;
+  int time_jump_count_ = 0;
+  double time_jump_last_ = kNaN;
 };
 
 }  // namespace fnmpc::estimation

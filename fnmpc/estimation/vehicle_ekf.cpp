@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "fnmpc/estimation/vehicle_ekf.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -26,9 +27,18 @@ void Require(bool ok, const char* field, double value, const char* what) {
   }
 }
 
+// cos(theta) bounded away from zero (|theta| <= 1.5 rad equivalent): the Euler-rate matrix
+// stays finite beyond the attitude envelope, which the health flags (max_pitch < pi/2) mark.
+double GuardedCos(double theta) {
+  constexpr double kMinCos = 0.0707372016677029;  // cos(1.5)
+  const double c = std::cos(theta);
+  return std::abs(c) >= kMinCos ? c : std::copysign(kMinCos, c);
+}
+
 // Euler-rate matrix: euler' = T(phi, theta) * omega_body.
 Mat3 EulerRateMatrix(double phi, double theta) {
-  const double cf = std::cos(phi), sf = std::sin(phi), ct = std::cos(theta), tt = std::tan(theta);
+  const double cf = std::cos(phi), sf = std::sin(phi), ct = GuardedCos(theta),
+               tt = std::sin(theta) / ct;
   Mat3 T;
   T << 1.0, sf * tt, cf * tt, 0.0, cf, -sf, 0.0, sf / ct, cf / ct;
   return T;
@@ -82,6 +92,27 @@ void VehicleEkfConfig::Validate() const {
   Require(takeoff_velocity_std >= 0.0, "takeoff_velocity_std", takeoff_velocity_std,
           "must be >= 0");
   Require(std::isfinite(ground_height), "ground_height", ground_height, "must be finite");
+  Require(max_position_std > 0.0, "max_position_std", max_position_std, "must be > 0 (kInf: off)");
+  Require(max_velocity_std > 0.0, "max_velocity_std", max_velocity_std, "must be > 0 (kInf: off)");
+  Require(max_attitude_std > 0.0, "max_attitude_std", max_attitude_std, "must be > 0 (kInf: off)");
+  Require(max_pitch > 0.0 && max_pitch < 0.5 * M_PI, "max_pitch", max_pitch,
+          "must be in (0, pi/2)");
+  for (double v : max_staleness) {
+    Require(v > 0.0, "max_staleness", v, "entries must be > 0 (kInf: not monitored)");
+  }
+  Require(max_extrapolation >= 0.0 && std::isfinite(max_extrapolation), "max_extrapolation",
+          max_extrapolation, "must be finite and >= 0");
+  Require(max_time_jump > 0.0 && std::isfinite(max_time_jump), "max_time_jump", max_time_jump,
+          "must be finite and > 0");
+  Require(std::max(max_time_jump, max_extrapolation) / max_predict_dt <= 1e5, "max_time_jump",
+          std::max(max_time_jump, max_extrapolation),
+          "and max_extrapolation must be <= 1e5 * max_predict_dt (sub-step cap)");
+  Require(time_jump_reset_count >= 1, "time_jump_reset_count", time_jump_reset_count,
+          "must be >= 1");
+  Require(reset_position_std >= 0.0 && std::isfinite(reset_position_std), "reset_position_std",
+          reset_position_std, "must be finite and >= 0");
+  Require(reset_attitude_std >= 0.0 && std::isfinite(reset_attitude_std), "reset_attitude_std",
+          reset_attitude_std, "must be finite and >= 0");
   const auto check_sensor = [](const SensorSpec& s, const char* name, bool noise2) {
     if (!s.enabled) return;
     Require(s.rate_hz > 0.0, name, s.rate_hz, "rate_hz must be > 0");
@@ -120,8 +151,8 @@ VehicleStateCov ImuFlowJacobian(const VehicleStateVec& x, const Vec3& accel, con
   A.block<3, 3>(Idx::kPos, Idx::kVel).setIdentity();
   for (int i = 0; i < 3; ++i) A.block<3, 1>(Idx::kVel, Idx::kEuler + i) = dR[i] * a;
   A.block<3, 3>(Idx::kVel, Idx::kAccelBias) = -R;
-  const double cf = std::cos(e.x()), sf = std::sin(e.x()), ct = std::cos(e.y()),
-               st = std::sin(e.y()), tt = std::tan(e.y());
+  const double cf = std::cos(e.x()), sf = std::sin(e.x()), ct = GuardedCos(e.y()),
+               st = std::sin(e.y()), tt = st / ct;
   Mat3 dT_dphi, dT_dtheta;
   dT_dphi << 0.0, cf * tt, -sf * tt, 0.0, -sf, -cf, 0.0, cf / ct, -sf / ct;
   dT_dtheta << 0.0, sf / (ct * ct), cf / (ct * ct), 0.0, 0.0, 0.0, 0.0, sf * st / (ct * ct),
@@ -223,6 +254,7 @@ void VehicleEkf::InitState(double t, const Vec3& position, const Vec3& euler, St
   s->takeoff_since = kNaN;
   s->land_since = kNaN;
   s->consecutive_gated = {};
+  s->last_fused.fill(kNaN);
 }
 
 void VehicleEkf::Initialize(double t, const Vec3& position, const Vec3& euler) {
@@ -231,7 +263,39 @@ void VehicleEkf::Initialize(double t, const Vec3& position, const Vec3& euler) {
                                 std::to_string(t));
   }
   buffer_.Clear();
+  time_jump_count_ = 0;
   InitState(t, position, euler, &s_);
+}
+
+bool VehicleEkf::TimeJumpRejected(double t) {
+  if (!std::isfinite(s_.time) || !(t > s_.time + config_.max_time_jump)) {
+    time_jump_count_ = 0;
+    return false;
+  }
+  const bool consistent =
+      time_jump_count_ > 0 && std::abs(t - time_jump_last_) <= config_.max_time_jump;
+  time_jump_count_ = consistent ? time_jump_count_ + 1 : 1;
+  time_jump_last_ = t;
+  if (time_jump_count_ < config_.time_jump_reset_count) return true;
+  // The clock really moved on: re-anchor at t without integrating the gap. The state is
+  // kept; velocity, position and attitude variances are raised to cover the unknown gap.
+  time_jump_count_ = 0;
+  ++counters_.time_resets;
+  buffer_.Clear();
+  if (s_.initialized) {
+    const double pv = config_.reset_position_std * config_.reset_position_std;
+    const double vv = config_.initial_velocity_std * config_.initial_velocity_std;
+    const double ev = config_.reset_attitude_std * config_.reset_attitude_std;
+    for (int i = 0; i < 3; ++i) {
+      s_.P(Idx::kPos + i, Idx::kPos + i) += pv;
+      s_.P(Idx::kVel + i, Idx::kVel + i) = std::max(s_.P(Idx::kVel + i, Idx::kVel + i), vv);
+      s_.P(Idx::kEuler + i, Idx::kEuler + i) += ev;
+    }
+    s_.takeoff_since = kNaN;
+    s_.land_since = kNaN;
+  }
+  s_.time = t;
+  return false;
 }
 
 bool VehicleEkf::CommandFresh(double t, const State& s) const {
@@ -244,6 +308,10 @@ EkfStatus VehicleEkf::SetCommand(double t, double thrust, double roll_ref, doubl
       !std::isfinite(pitch_ref) || !std::isfinite(yaw_ref)) {
     ++counters_.commands_rejected;
     return EkfStatus::kRejectedNonFinite;
+  }
+  if (TimeJumpRejected(t)) {
+    ++counters_.commands_rejected;
+    return EkfStatus::kRejectedTimeJump;
   }
   Event e;
   e.stamp = t;
@@ -300,6 +368,7 @@ EkfStatus VehicleEkf::Process(const Measurement& m) {
       return finish(EkfStatus::kIgnored);
   }
   if (!finite) return finish(EkfStatus::kRejectedNonFinite);
+  if (TimeJumpRejected(m.stamp)) return finish(EkfStatus::kRejectedTimeJump);
   Event e;
   e.stamp = m.stamp;
   e.order = 1 + kind;
@@ -355,6 +424,7 @@ EkfStatus VehicleEkf::ApplyMeasurement(const Measurement& m, State* s) const {
   if (!s->initialized) {
     if (m.kind == SensorKind::kMocapPose) {
       InitState(m.stamp, m.position, m.euler, s);
+      s->last_fused[static_cast<std::size_t>(m.kind)] = m.stamp;
       return EkfStatus::kAccepted;
     }
     s->time = m.stamp;
@@ -434,6 +504,12 @@ EkfStatus VehicleEkf::ApplyMeasurement(const Measurement& m, State* s) const {
     default:
       return EkfStatus::kIgnored;
   }
+  // Fresh for the health check: fused, or valid but not needed in this mode; the IMU is an
+  // input even when its landed updates are gated.
+  if (status == EkfStatus::kAccepted || status == EkfStatus::kIgnored ||
+      m.kind == SensorKind::kImu) {
+    s->last_fused[static_cast<std::size_t>(m.kind)] = m.stamp;
+  }
   if (s->mode == VehicleMode::kLanded) {
     s->ground_z = s->x(Idx::kPos + 2);
   } else {
@@ -492,9 +568,16 @@ void VehicleEkf::SwitchMode(VehicleMode mode, State* s) const {
 void VehicleEkf::Predict(double t, State* s) const {
   if (!(t > s->time)) return;
   const double dt = t - s->time;
-  const int n = static_cast<int>(std::ceil(dt / config_.max_predict_dt - 1e-9));
-  const double h = dt / std::max(n, 1);
-  for (int i = 0; i < std::max(n, 1); ++i) {
+  // Callers keep dt within max(max_time_jump, max_extrapolation) (events beyond are rejected,
+  // Estimate caps its target); the cap here only bounds the work, computed before the int
+  // cast so that no stamp (1e300) can overflow it.
+  const double max_steps = std::ceil(std::max(config_.max_time_jump, config_.max_extrapolation) /
+                                     config_.max_predict_dt);
+  double steps = std::ceil(dt / config_.max_predict_dt - 1e-9);
+  if (!(steps <= max_steps)) steps = max_steps;
+  const int n = std::max(1, static_cast<int>(steps));
+  const double h = dt / n;
+  for (int i = 0; i < n; ++i) {
     PredictStep(h, s);
     s->time += h;
   }
@@ -577,12 +660,58 @@ void VehicleEkf::PredictStep(double h, State* s) const {
   Symmetrize<kN>(&s->P);
 }
 
+void VehicleEkf::FillHealth(const State& st, double t_query, EstimateHealth* h) const {
+  h->flags = 0;
+  h->stale_kinds = 0;
+  h->extrapolation = t_query - st.time;
+  const auto max_std = [&](int first) {
+    return std::sqrt(st.P.diagonal().segment<3>(first).maxCoeff());
+  };
+  h->position_std = max_std(Idx::kPos);
+  h->velocity_std = max_std(Idx::kVel);
+  h->attitude_std = max_std(Idx::kEuler);
+  if (!std::isfinite(t_query) || !st.x.allFinite() || !st.P.allFinite()) {
+    h->Set(HealthFlag::kNonFinite);
+  }
+  const bool absolute_fix =
+      std::isfinite(st.last_fused[static_cast<std::size_t>(SensorKind::kMocapPose)]);
+  if (absolute_fix && !(h->position_std <= config_.max_position_std)) {
+    h->Set(HealthFlag::kPositionUncertain);
+  }
+  if (!(h->velocity_std <= config_.max_velocity_std)) h->Set(HealthFlag::kVelocityUncertain);
+  if (!(h->attitude_std <= config_.max_attitude_std)) h->Set(HealthFlag::kAttitudeUncertain);
+  if (!(std::abs(st.x(Idx::kEuler + 1)) <= config_.max_pitch)) {
+    h->Set(HealthFlag::kAttitudeEnvelope);
+  }
+  for (int k = 0; k < kNumSensorKinds; ++k) {
+    const auto i = static_cast<std::size_t>(k);
+    const double last = st.last_fused[i];
+    h->staleness[i] = std::isfinite(last) ? t_query - last : kInf;
+    const bool monitored = std::isfinite(config_.max_staleness[i]) &&
+                           (std::isfinite(last) || !config_.stale_after_first_fix);
+    if (monitored && !(h->staleness[i] <= config_.max_staleness[i])) {
+      h->stale_kinds |= 1u << static_cast<unsigned>(k);
+      h->Set(HealthFlag::kStale);
+    }
+  }
+}
+
 VehicleEstimate VehicleEkf::Estimate(double t) const {
   VehicleEstimate out;
   if (!s_.initialized) return out;
   State st = s_;
-  if (std::isfinite(t)) Predict(t, &st);
-  out.valid = true;
+  bool extrapolation_limit = false;
+  if (std::isfinite(t)) {
+    double target = t;
+    if (t - st.time > config_.max_extrapolation) {
+      target = st.time + config_.max_extrapolation;
+      extrapolation_limit = true;
+    }
+    Predict(target, &st);
+  }
+  FillHealth(st, std::isfinite(t) ? std::max(t, st.time) : t, &out.health);
+  if (extrapolation_limit) out.health.Set(HealthFlag::kExtrapolationLimit);
+  out.valid = out.health.ok();
   out.time = st.time;
   out.mode = st.mode;
   out.x = st.x;

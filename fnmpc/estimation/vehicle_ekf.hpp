@@ -68,6 +68,32 @@ struct VehicleEkfConfig {
   double max_specific_force = 160.0;  ///< IMU accel norms above are implausible [m/s^2]
   double max_angular_rate = 35.0;     ///< IMU gyro norms above are implausible [rad/s]
 
+  // Health (VehicleEstimate::health, ::valid) and time guards. See docs/estimation.md.
+  /// Position std limit [m]; checked only once an absolute position fix (mocap) was fused:
+  /// a follower's dead-reckoned position in {m} is not monitored.
+  double max_position_std = 0.5;
+  double max_velocity_std = 1.0;  ///< velocity std limit [m/s] (initial_velocity_std is below)
+  double max_attitude_std = 0.2;  ///< limit for each Euler-angle std [rad]
+  /// |pitch| above this is outside the attitude envelope (the Euler-rate matrix is singular
+  /// at pi/2; its 1/cos(pitch) is bounded beyond 1.5 rad) [rad], in (0, pi/2).
+  double max_pitch = 1.2;
+  /// Staleness limit per SensorKind (mocap, imu, optical_flow, compass, battery, relative) [s]:
+  /// a monitored kind with no fused measurement for longer makes the estimate invalid.
+  /// kInf = not monitored. Battery and relative measurements are not fused by this filter.
+  std::array<double, kNumSensorKinds> max_staleness{0.5, 0.25, 0.5, 1.0, kInf, kInf};
+  /// true: a kind is monitored only after its first fused measurement (a sensor this vehicle
+  /// does not have, e.g. mocap on a follower, is not flagged); false: from initialisation.
+  bool stale_after_first_fix = true;
+  double max_extrapolation =
+      0.5;  ///< Estimate(t) predicts at most this far past the newest event [s]
+  /// Events (measurements, commands) stamped further ahead of the newest event are rejected
+  /// (kRejectedTimeJump) [s]; `time_jump_reset_count` consecutive ones within this distance of
+  /// each other re-anchor the filter at the new time (counted in `time_resets`).
+  double max_time_jump = 1.0;
+  int time_jump_reset_count = 3;
+  double reset_position_std = 1.0;   ///< position std added at a re-anchor [m]
+  double reset_attitude_std = 0.05;  ///< attitude std added at a re-anchor [rad]
+
   // Mode switching (hysteresis: separate thresholds and hold times).
   double takeoff_height = 0.05;        ///< mocap height above ground that signals take-off [m]
   double takeoff_speed = 0.15;         ///< optical-flow speed that signals take-off [m/s]
@@ -87,8 +113,11 @@ struct VehicleEkfConfig {
 
 /// Output of VehicleEkf::Estimate.
 struct VehicleEstimate {
-  bool valid = false;  ///< false before initialisation
-  double time = kNaN;  ///< time of validity [s]
+  /// Initialised and healthy: health.flags == 0 (covariance within its limits, no monitored
+  /// kind stale, not extrapolated beyond the limit, finite, pitch inside the envelope).
+  bool valid = false;
+  EstimateHealth health;  ///< why not valid, staleness per kind, stds
+  double time = kNaN;     ///< time of validity [s]
   VehicleMode mode = VehicleMode::kLanded;
   Vec3 position = Vec3::Constant(kNaN);                 ///< {n} [m]
   Vec3 position_mpc = Vec3::Constant(kNaN);             ///< {m}: position - start position [m]
@@ -127,8 +156,10 @@ class VehicleEkf {
   /// Fuses one measurement (predicting to its stamp, replaying if it is late).
   EkfStatus Process(const Measurement& m);
 
-  /// State predicted to time t (no change to the filter). For t before the last fused
-  /// stamp, the state at that stamp is returned (time field tells which).
+  /// State predicted to time t (no change to the filter), with its health. For t before the
+  /// last fused stamp, the state at that stamp is returned (time field tells which); for t
+  /// beyond it by more than `max_extrapolation`, the state at the limit, flagged
+  /// kExtrapolationLimit (never more than max_extrapolation / max_predict_dt sub-steps).
   [[nodiscard]] VehicleEstimate Estimate(double t) const;
 
   /// Current mode (after the newest event).
@@ -174,6 +205,8 @@ class VehicleEkf {
     std::array<int, kNumSensorKinds> consecutive_gated{};
     std::int64_t gate_resets = 0;
     std::int64_t mode_switches = 0;
+    // Stamp of the newest fused (or, for the IMU, used) measurement per kind; NaN = none.
+    std::array<double, kNumSensorKinds> last_fused{kNaN, kNaN, kNaN, kNaN, kNaN, kNaN};
   };
 
   EkfStatus Apply(const Event& e, State* s) const;
@@ -188,6 +221,10 @@ class VehicleEkf {
   EkfStatus Update(SensorKind kind, const Vec<M>& y, const Mat<M, VehicleStateIndex::kSize>& H,
                    const Mat<M, M>& R, State* s) const;
   [[nodiscard]] bool CommandFresh(double t, const State& s) const;
+  // True when an event stamped t must be rejected as a forward time jump; re-anchors the
+  // filter at t after `time_jump_reset_count` consistent jumps (and then returns false).
+  bool TimeJumpRejected(double t);
+  void FillHealth(const State& st, double t_query, EstimateHealth* h) const;
 
   VehicleEkfConfig config_;
   model::VehicleParams vehicle_;
@@ -195,6 +232,8 @@ class VehicleEkf {
   State s_;
   ReplayBuffer<Event, State> buffer_;
   EkfCounters counters_;
+  int time_jump_count_ = 0;       // consecutive forward jumps
+  double time_jump_last_ = kNaN;  // stamp of the last one
 };
 
 /// Continuous-time IMU-driven flying model f(x, accel, gyro) (VehicleStateIndex layout).
