@@ -61,6 +61,9 @@ struct VehicleLog {
   std::vector<double> tracking;  // leader |p - p_ref|
   std::vector<double> solver_time, solver_cpu, kkt, cost;
   long over_budget = 0, steps = 0, fallbacks = 0, guarded = 0, failures = 0;
+  long reinitialisations = 0;
+  double failsafe_time = kNaN;
+  std::string failsafe_reason;
   double first_step_time = kNaN;
   double touchdown_vz = kNaN, touchdown_time = kNaN;
   double max_thrust_jump_at_switch = kNaN;
@@ -106,6 +109,7 @@ formation::ControllerConfig ControllerConfigFor(const config::ScenarioConfig& sc
   c.pid.max_thrust = sc.thrust_max;
   c.max_attitude_ref = sc.max_attitude_ref;
   c.max_speed = sc.max_speed;
+  c.safety = sc.safety;
   for (const auto& n : v.neighbours) c.neighbours.push_back({n.index, n.desired});
   c.frame = v.frame_control ? ocp::TargetFrame::kControl : ocp::TargetFrame::kInertial;
   c.relative_position_bound = v.relative_position_bound;
@@ -273,6 +277,16 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
           cmd.pitch = out.pitch;
           cmd.yaw = out.yaw;
           world.SetCommand(i, cmd);
+          ctrl[i]->Diagnose(&out);  // after the command: not on the command path
+          if (out.recovery == formation::RecoveryAction::kReinitialise) ++L.reinitialisations;
+          if (out.recovery == formation::RecoveryAction::kFailsafe) {
+            L.failsafe_time = t;
+            L.failsafe_reason = std::string(formation::ToString(out.recovery_reason));
+            if (options.progress) {
+              std::fprintf(stderr, "\n%s t = %.2f s: %s hands over to the failsafe (%s)\n",
+                           options.label.c_str(), t, v.name.c_str(), L.failsafe_reason.c_str());
+            }
+          }
           if (out.nmpc) {
             ++L.steps;
             if (std::isnan(L.first_step_time)) {
@@ -290,7 +304,8 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
           if (out.guarded) ++L.guarded;
           // Touchdown: the first control step of the landing phase with the true CoM within
           // 1.5 cm of its resting height (the feet touch); its true vertical speed is kept.
-          if ((out.phase == FlightPhase::kLanding || out.phase == FlightPhase::kLanded) &&
+          if ((out.phase == FlightPhase::kLanding || out.phase == FlightPhase::kLanded ||
+               out.phase == FlightPhase::kFailsafe) &&
               std::isnan(L.touchdown_time) &&
               truth[i].position.z() < sim::World::kRestHeight + 0.015) {
             L.touchdown_vz = truth[i].velocity.z();
@@ -334,7 +349,7 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
             "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
             "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
             "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
-            "{:d},{:.6g},{:.6g},{:.6g},{:.6g},{},{},{:d},{},{:d},{},{:.4f},{:.4f}\n",
+            "{:d},{:.6g},{:.6g},{:.6g},{:.6g},{},{},{:d},{},{:d},{},{:.4f},{:.4f},{},{},{}\n",
             t, formation::ToString(out.phase), x.position.x(), x.position.y(), x.position.z(),
             x.velocity.x(), x.velocity.y(), x.velocity.z(), x.euler.x(), x.euler.y(), x.euler.z(),
             e.position.x(), e.position.y(), e.position.z(), e.velocity.x(), e.velocity.y(),
@@ -345,7 +360,8 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
             rel[1].x(), rel[1].y(), rel[1].z(), est_rel[1].x(), est_rel[1].y(), est_rel[1].z(),
             err[1], ferr, steady ? 1 : 0, out.cost, out.kkt, out.solver_time, out.solver_cpu_time,
             out.sqp_iterations, out.qp_iterations, out.fallback ? 1 : 0, rti::ToString(out.status),
-            out.guarded ? 1 : 0, rej, x.voltage, out.voltage);
+            out.guarded ? 1 : 0, rej, x.voltage, out.voltage, formation::ToString(out.recovery),
+            formation::ToString(out.recovery_reason), out.active_neighbours);
       }
       if (options.progress && t >= next_progress) {
         std::fprintf(stderr, "\r%s t = %5.1f / %.1f s", options.label.c_str(), t, duration);
@@ -364,6 +380,7 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
   std::vector<double> all_times;
   double time_max = 0.0, time_max_first = 0.0;
   long fallbacks = 0, failures = 0, over_budget = 0, nmpc_steps = 0, guarded = 0;
+  long recoveries = 0, failsafes = 0;
   bool landed_safely = true;
   auto worse = [](double a, double b) {
     return std::isnan(a) ? b : (std::isnan(b) ? a : std::max(a, b));
@@ -411,6 +428,12 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
       j["cost_median"] = Num(Median(L.cost));
       j["cost_max"] = Num(Max(L.cost));
       j["fallbacks"] = L.fallbacks;
+      j["recoveries"] = L.reinitialisations;
+      j["failsafes"] = std::isfinite(L.failsafe_time) ? 1 : 0;
+      j["failsafe_time_s"] = Num(L.failsafe_time);
+      j["failsafe_reason"] = L.failsafe_reason.empty() ? json(nullptr) : json(L.failsafe_reason);
+      recoveries += L.reinitialisations;
+      failsafes += std::isfinite(L.failsafe_time) ? 1 : 0;
       j["solver_failures"] = L.failures;
       j["guarded_commands"] = L.guarded;
       j["estimator_rejections"] = ctrl[i]->estimator_rejections();
@@ -461,6 +484,8 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
   s["sample_time_s"] = sc.sample_time;
   s["nmpc_steps"] = nmpc_steps;
   s["fallbacks"] = fallbacks;
+  s["recoveries"] = recoveries;
+  s["failsafes"] = failsafes;
   s["solver_failures"] = failures;
   s["solver_converged_every_step"] = failures == 0 && fallbacks == 0 && nmpc_steps > 0;
   s["guarded_commands"] = guarded;
@@ -489,7 +514,7 @@ json AggregateRuns(const std::vector<json>& runs) {
   }
   for (const char* k :
        {"max_formation_error_m", "solver_time_max_s", "solver_time_max_after_first_step_s",
-        "fallbacks", "solver_failures", "guarded_commands"}) {
+        "fallbacks", "recoveries", "failsafes", "solver_failures", "guarded_commands"}) {
     a[k] = Num(Max(values(k)));
   }
   {

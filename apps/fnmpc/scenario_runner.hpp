@@ -25,7 +25,8 @@ inline constexpr const char* kVehicleLogCsvHeader =
     "rel0_x,rel0_y,rel0_z,est_rel0_x,est_rel0_y,est_rel0_z,err0,"
     "rel1_x,rel1_y,rel1_z,est_rel1_x,est_rel1_y,est_rel1_z,err1,formation_error,"
     "steady,cost,kkt,solver_time,solver_cpu_time,sqp_iterations,qp_iterations,"
-    "fallback,status,guarded,estimator_rejections,voltage,voltage_measured\n";
+    "fallback,status,guarded,estimator_rejections,voltage,voltage_measured,"
+    "recovery,recovery_reason,active_neighbours\n";
 
 /// Scenario -> library objects: the one mapping used by `fnmpc run` and by the ROS nodes
 /// (ros/fnmpc_ros), so both fly the same controllers in the same world.

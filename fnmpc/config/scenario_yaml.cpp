@@ -265,6 +265,36 @@ ScenarioConfig ParseScenario(YamlMap map) {
     }
   }
 
+  // ---- Safety (formation::SafetyConfig, defaults there).
+  if (map.Has("safety")) {
+    YamlMap sm = map.Map("safety");
+    formation::SafetyConfig& f = s.safety;
+    f.min_altitude = NonNegative(sm, "min_altitude", f.min_altitude);
+    f.max_altitude = Positive(sm, "max_altitude", f.max_altitude);
+    if (!(f.max_altitude > f.min_altitude))
+      throw sm.ErrorAt("max_altitude", "must be above min_altitude");
+    f.neighbour_timeout = Positive(sm, "neighbour_timeout", f.neighbour_timeout);
+    f.neighbour_reacquire_time =
+        NonNegative(sm, "neighbour_reacquire_time", f.neighbour_reacquire_time);
+    if (sm.Has("recovery")) {
+      YamlMap rm = sm.Map("recovery");
+      formation::RecoveryConfig& r = f.recovery;
+      r.fallbacks_before_reinit = rm.Int("fallbacks_before_reinit", r.fallbacks_before_reinit);
+      if (r.fallbacks_before_reinit < 1 || r.fallbacks_before_reinit > 1000)
+        throw rm.ErrorAt("fallbacks_before_reinit", "must be in [1, 1000]");
+      r.max_reinitialisations = rm.Int("max_reinitialisations", r.max_reinitialisations);
+      if (r.max_reinitialisations < 0 || r.max_reinitialisations > 1000)
+        throw rm.ErrorAt("max_reinitialisations", "must be in [0, 1000]");
+      r.estimate_timeout = Positive(rm, "estimate_timeout", r.estimate_timeout);
+      r.failsafe_hold_time = NonNegative(rm, "failsafe_hold_time", r.failsafe_hold_time);
+      r.failsafe_descent_speed = Positive(rm, "failsafe_descent_speed", r.failsafe_descent_speed);
+      if (r.failsafe_descent_speed > 1.5)
+        throw rm.ErrorAt("failsafe_descent_speed", "must be <= 1.5 m/s");
+      rm.Finish();
+    }
+    sm.Finish();
+  }
+
   if (map.Has("metrics")) {
     YamlMap mm = map.Map("metrics");
     s.settle_time = NonNegative(mm, "settle_time", s.settle_time);

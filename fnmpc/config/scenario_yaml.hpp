@@ -8,6 +8,7 @@
 #include "fnmpc/config/yaml_reader.hpp"
 #include "fnmpc/core/sensors.hpp"
 #include "fnmpc/core/types.hpp"
+#include "fnmpc/formation/recovery.hpp"
 #include "fnmpc/model/vehicle_params.hpp"
 
 /// Formation scenario files (config/scenarios/*.yaml, every key documented in
@@ -74,6 +75,7 @@ struct ScenarioConfig {
   ScenarioWeights leader_weights, follower_weights;
   double thrust_min = 5.0, thrust_max = 25.0, max_attitude_ref = 0.35, max_speed = 2.0;
   bool use_throttle = true;
+  formation::SafetyConfig safety;  ///< block `safety:` (see formation::SafetyConfig)
   // Phases.
   double takeoff_time = 1.0, takeoff_height = 1.0, climb_speed = 0.5, hover_before_switch = 1.5;
   double blend_time = 0.5, landing_time = 50.0, descent_speed = 0.3;

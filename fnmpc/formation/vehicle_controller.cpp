@@ -23,6 +23,8 @@ std::string_view ToString(FlightPhase p) {
       return "landing";
     case FlightPhase::kLanded:
       return "landed";
+    case FlightPhase::kFailsafe:
+      return "failsafe";
   }
   return "?";
 }
@@ -38,6 +40,7 @@ void ControllerConfig::Validate() const {
   if (!(max_attitude_ref > 0.0 && max_attitude_ref < 1.2))
     fail("max_attitude_ref must be in (0, 1.2) rad");
   if (!(max_speed > 0.0)) fail("max_speed must be > 0");
+  safety.Validate();
   if (!leader) {
     if (neighbours.empty() || neighbours.size() > 2) {
       fail("a follower needs 1 or 2 neighbours, got " + std::to_string(neighbours.size()));
@@ -79,23 +82,30 @@ struct NmpcInput {
   double t = 0.0;
   Vec3 position = Vec3::Zero();  // leader only, {n}
   Vec<6> own = Vec<6>::Zero();   // v (3), roll, pitch, yaw
+  double height = kNaN;          // follower: current height of the CoM [m] (NaN: unknown)
   std::array<NeighbourState, 2> neighbours{};
+  std::array<bool, 2> active{true, true};  // follower: neighbour j in the cost
 };
 
 struct NmpcStep {
   Vec3 u = Vec3::Constant(kNaN);
   rti::RtiStats stats;
   double cpu_time = kNaN;
-  double kkt = kNaN;
-  double cost = kNaN;
   Vec3 reference = Vec3::Constant(kNaN);
 };
 
+/// A solver with its problem data. Built with the controller (no allocation at the
+/// take-off -> NMPC switch); Engage() sets what is known only then.
 class NmpcCore {
  public:
   virtual ~NmpcCore() = default;
+  /// Leader: the hover point at the switch; both: the yaw reference.
+  virtual void Engage(const Vec3& anchor, double yaw_ref) = 0;
+  /// Initial guess from the estimate: the next Step iterates to convergence.
   virtual void Start(const NmpcInput& in, const Vec3& u_guess) = 0;
   virtual NmpcStep Step(const NmpcInput& in) = 0;
+  /// KKT value and cost of the iterate after the last Step (N more integrations).
+  virtual void Diagnose(double* kkt, double* cost) = 0;
   /// Predicted positions of the current iterate; `origin` is added to a follower's
   /// displacement (the leader's states are absolute).
   virtual void Predicted(const Vec3& origin, std::vector<Vec3>* out) const = 0;
@@ -126,14 +136,16 @@ void InputBounds(const ControllerConfig& c, Solver* s) {
   for (int k = 0; k < s->horizon(); ++k) s->SetInputBounds(k, lo, hi);
 }
 
+// Bounds of the leader's position z and velocity, of the follower's displacement and
+// velocity: soft (exact-penalty slacks), so that no state can make a QP infeasible; the
+// input bounds stay hard.
 class LeaderCore final : public NmpcCore {
  public:
   using Solver = rti::RtiSolver<ocp::LeaderProblem>;
-  LeaderCore(const ControllerConfig& c, const Vec3& anchor, double yaw_ref)
+  explicit LeaderCore(const ControllerConfig& c)
       : c_(c),
-        anchor_(anchor),
         solver_(ocp::LeaderProblem{model::AttitudeModelParams::From(c.params)}, c.rti,
-                rti::StateBoundLayout{{3, 4, 5}, {false, false, false}}) {
+                rti::StateBoundLayout{{2, 3, 4, 5}, {true, true, true, true}}) {
     const NmpcWeights& wt = c.weights;
     w_ << wt.position, wt.velocity, wt.attitude, wt.attitude, wt.thrust, wt.attitude_ref,
         wt.attitude_ref;
@@ -141,13 +153,22 @@ class LeaderCore final : public NmpcCore {
     solver_.SetWeights(w_, wn_);
     InputBounds(c, &solver_);
     Vec<9> lb = Vec<9>::Constant(-kInf), ub = Vec<9>::Constant(kInf);
+    lb[2] = c.safety.min_altitude;  // z of the CoM, the ground plane at z = 0
+    ub[2] = c.safety.max_altitude;
     lb.segment<3>(3).setConstant(-c.max_speed);
     ub.segment<3>(3).setConstant(c.max_speed);
     for (int k = 1; k <= solver_.horizon(); ++k) solver_.SetStateBounds(k, lb, ub);
     yref_.assign(solver_.horizon(), Solver::Y::Zero());
-    params_.assign(solver_.horizon() + 1, Solver::P::Constant(yaw_ref));
-    for (int k = 0; k <= solver_.horizon(); ++k) solver_.SetParameters(k, params_[k]);
+    params_.assign(solver_.horizon() + 1, Solver::P::Zero());
     yref_n_.setZero();
+  }
+
+  void Engage(const Vec3& anchor, double yaw_ref) override {
+    anchor_ = anchor;
+    for (int k = 0; k <= solver_.horizon(); ++k) {
+      params_[k].setConstant(yaw_ref);
+      solver_.SetParameters(k, params_[k]);
+    }
   }
 
   void Start(const NmpcInput& in, const Vec3& u_guess) override {
@@ -160,15 +181,18 @@ class LeaderCore final : public NmpcCore {
     if (!first_) solver_.Shift();
     first_ = false;
     References(in.t);
-    const Vec<9> x0 = State(in);
+    x0_ = State(in);
     const double cpu0 = ThreadCpuSeconds();
-    solver_.Step(x0, &out.u);
+    solver_.Step(x0_, &out.u);
     out.cpu_time = ThreadCpuSeconds() - cpu0;
     out.stats = solver_.stats();
-    out.kkt = solver_.ComputeKkt(x0);
-    out.cost = Objective(solver_, solver_.problem(), w_, wn_, yref_, yref_n_, params_);
     out.reference = yref_[0].head<3>();
     return out;
+  }
+
+  void Diagnose(double* kkt, double* cost) override {
+    *kkt = solver_.ComputeKkt(x0_);
+    *cost = Objective(solver_, solver_.problem(), w_, wn_, yref_, yref_n_, params_);
   }
 
   void Predicted(const Vec3& /*origin*/, std::vector<Vec3>* out) const override {
@@ -201,13 +225,14 @@ class LeaderCore final : public NmpcCore {
   }
 
   ControllerConfig c_;
-  Vec3 anchor_;
+  Vec3 anchor_ = Vec3::Zero();
   Solver solver_;
   Solver::Y w_;
   Solver::YN wn_;
   std::vector<Solver::Y> yref_;
   Solver::YN yref_n_;
   std::vector<Solver::P> params_;
+  Vec<9> x0_ = Vec<9>::Zero();
   bool first_ = true;
 };
 
@@ -216,12 +241,10 @@ class FollowerCore final : public NmpcCore {
  public:
   using Problem = ocp::ReducedFollowerProblem<Nn>;
   using Solver = rti::RtiSolver<Problem>;
-  FollowerCore(const ControllerConfig& c, double yaw_ref)
+  explicit FollowerCore(const ControllerConfig& c)
       : c_(c),
-        yaw_ref_(yaw_ref),
-        solver_(
-            Problem{model::AttitudeModelParams::From(c.params), c.frame}, c.rti,
-            rti::StateBoundLayout{{0, 1, 2, 3, 4, 5}, {true, true, true, false, false, false}}) {
+        solver_(Problem{model::AttitudeModelParams::From(c.params), c.frame}, c.rti,
+                rti::StateBoundLayout{{0, 1, 2, 3, 4, 5}, {true, true, true, true, true, true}}) {
     const NmpcWeights& wt = c.weights;
     w_.setZero();
     for (int j = 0; j < Nn; ++j) {
@@ -231,6 +254,8 @@ class FollowerCore final : public NmpcCore {
     w_.template tail<5>() << wt.attitude, wt.attitude, wt.thrust, wt.attitude_ref, wt.attitude_ref;
     wn_ = wt.terminal_factor * w_.template head<6 * Nn + 2>();
     solver_.SetWeights(w_, wn_);
+    w_active_ = w_;
+    wn_active_ = wn_;
     InputBounds(c, &solver_);
     typename Solver::Y y = Solver::Y::Zero();
     for (int j = 0; j < Nn; ++j) y.template segment<3>(3 * j) = c.neighbours[j].desired;
@@ -240,6 +265,8 @@ class FollowerCore final : public NmpcCore {
     solver_.SetTerminalReference(yref_n_);
     params_.assign(solver_.horizon() + 1, Solver::P::Zero());
   }
+
+  void Engage(const Vec3& /*anchor*/, double yaw_ref) override { yaw_ref_ = yaw_ref; }
 
   void Start(const NmpcInput& in, const Vec3& u_guess) override {
     solver_.InitializeGuess(Stage(in), u_guess);
@@ -255,14 +282,18 @@ class FollowerCore final : public NmpcCore {
       solver_.OffsetGuess(shift);  // the displacement restarts at zero every step
     }
     first_ = false;
-    const Vec<9> x0 = Stage(in);
+    ActiveNeighbours(in);
+    x0_ = Stage(in);
     const double cpu0 = ThreadCpuSeconds();
-    solver_.Step(x0, &out.u);
+    solver_.Step(x0_, &out.u);
     out.cpu_time = ThreadCpuSeconds() - cpu0;
     out.stats = solver_.stats();
-    out.kkt = solver_.ComputeKkt(x0);
-    out.cost = Objective(solver_, solver_.problem(), w_, wn_, yref_, yref_n_, params_);
     return out;
+  }
+
+  void Diagnose(double* kkt, double* cost) override {
+    *kkt = solver_.ComputeKkt(x0_);
+    *cost = Objective(solver_, solver_.problem(), w_active_, wn_active_, yref_, yref_n_, params_);
   }
 
   void Predicted(const Vec3& origin, std::vector<Vec3>* out) const override {
@@ -270,25 +301,53 @@ class FollowerCore final : public NmpcCore {
   }
 
  private:
+  // A lost neighbour's rows get zero weight (the cost pattern is kept: no allocation) and
+  // its prediction no longer bounds the displacement.
+  void ActiveNeighbours(const NmpcInput& in) {
+    bool changed = false;
+    for (int j = 0; j < Nn; ++j) changed = changed || in.active[j] != active_[j];
+    if (!changed) return;
+    w_active_ = w_;
+    for (int j = 0; j < Nn; ++j) {
+      active_[j] = in.active[j];
+      if (active_[j]) continue;
+      w_active_.template segment<3>(3 * j).setZero();
+      w_active_.template segment<3>(3 * Nn + 3 * j).setZero();
+    }
+    wn_active_ = c_.weights.terminal_factor * w_active_.template head<6 * Nn + 2>();
+    solver_.SetWeightValues(w_active_, wn_active_);
+  }
+
   // Stage parameters from the neighbours' constant-velocity predictions, relative-position
-  // bounds mapped onto the displacement s: -b <= c_j - s <= b (cf. SetReducedFollowerStage).
+  // bounds mapped onto the displacement s: -b <= c_j - s <= b (cf. SetReducedFollowerStage),
+  // the altitude bounds onto s_z from the current height.
   Vec<9> Stage(const NmpcInput& in) {
     const double ts = c_.rti.sample_time;
     Vec<9> lb = Vec<9>::Constant(-kInf), ub = Vec<9>::Constant(kInf);
     lb.segment<3>(3).setConstant(-c_.max_speed);
     ub.segment<3>(3).setConstant(c_.max_speed);
     const Vec3& b = c_.relative_position_bound;
+    const bool height_known = std::isfinite(in.height);
     for (int k = 0; k <= solver_.horizon(); ++k) {
       typename Solver::P& p = params_[k];
       p[0] = yaw_ref_;
       Vec3 lo = Vec3::Constant(-kInf), hi = Vec3::Constant(kInf);
       for (int j = 0; j < Nn; ++j) {
         const auto& nb = in.neighbours[j];
+        if (!in.active[j]) {
+          // Finite, unweighted: keeps the linearisation finite.
+          p.template segment<6>(Problem::ParamRelPos(j)).setZero();
+          continue;
+        }
         const Vec3 cj = nb.rel_pos + (k * ts) * nb.vel;
         p.template segment<3>(Problem::ParamRelPos(j)) = cj;
         p.template segment<3>(Problem::ParamVel(j)) = nb.vel;
         lo = lo.cwiseMax(cj - b);
         hi = hi.cwiseMin(cj + b);
+      }
+      if (height_known) {
+        lo.z() = std::max(lo.z(), c_.safety.min_altitude - in.height);
+        hi.z() = std::min(hi.z(), c_.safety.max_altitude - in.height);
       }
       solver_.SetParameters(k, p);
       if (k >= 1) {
@@ -303,13 +362,15 @@ class FollowerCore final : public NmpcCore {
   }
 
   ControllerConfig c_;
-  double yaw_ref_;
+  double yaw_ref_ = 0.0;
   Solver solver_;
-  typename Solver::Y w_;
-  typename Solver::YN wn_;
+  typename Solver::Y w_, w_active_;
+  typename Solver::YN wn_, wn_active_;
+  std::array<bool, 2> active_{true, true};
   std::vector<typename Solver::Y> yref_;
   typename Solver::YN yref_n_;
   std::vector<typename Solver::P> params_;
+  Vec<9> x0_ = Vec<9>::Zero();
   bool first_ = true;
 };
 
@@ -320,6 +381,10 @@ estimation::VehicleEkfConfig OwnEkfConfig(const ControllerConfig& c) {
   e.ground_height = c.leader ? c.ground_height : 0.0;
   return e;
 }
+
+/// Failsafe descent without height or vertical speed: a thrust just below hover (about
+/// 0.3 m/s^2 down) so that the vehicle sinks slowly instead of holding an unknown height.
+constexpr double kFailsafeBlindThrustFactor = 0.97;
 
 bool Rejected(estimation::EkfStatus s) {
   using estimation::EkfStatus;
@@ -335,7 +400,8 @@ bool Rejected(estimation::EkfStatus s) {
 VehicleController::VehicleController(const ControllerConfig& config)
     : config_((config.Validate(), config)),
       ekf_(OwnEkfConfig(config), config.params),
-      pid_(config.pid, config.params.mass) {
+      pid_(config.pid, config.params.mass),
+      ladder_(config.safety.recovery) {
   for (const NeighbourTarget& n : config_.neighbours) {
     estimation::NeighbourEkfConfig nc;
     nc.sensors = config_.sensors;
@@ -343,8 +409,19 @@ VehicleController::VehicleController(const ControllerConfig& config)
     nc.target = n.vehicle;
     neighbour_ekfs_.emplace_back(nc);
   }
-  estimates_.neighbours.assign(config_.neighbours.size(),
-                               estimation::NeighbourStateVec::Constant(kNaN));
+  const std::size_t nn = config_.neighbours.size();
+  estimates_.neighbours.assign(nn, estimation::NeighbourStateVec::Constant(kNaN));
+  neighbour_seen_.assign(nn, kNaN);
+  neighbour_seen_since_.assign(nn, kNaN);
+  neighbour_active_.assign(nn, 1);
+  // The solver is built here, not at the take-off -> NMPC switch: no allocation in flight.
+  if (config_.leader) {
+    nmpc_ = std::make_unique<LeaderCore>(config_);
+  } else if (nn == 1) {
+    nmpc_ = std::make_unique<FollowerCore<1>>(config_);
+  } else {
+    nmpc_ = std::make_unique<FollowerCore<2>>(config_);
+  }
 }
 
 VehicleController::~VehicleController() = default;
@@ -393,7 +470,16 @@ void VehicleController::Process(const Measurement& m) {
         if (config_.neighbours[j].vehicle != m.relative.target) continue;
         const estimation::VehicleEstimate e = ekf_.Estimate(m.stamp);
         const Mat3 cov = e.covariance.block<3, 3>(6, 6);
-        neighbour_ekfs_[j].Process(m, e.euler, e.velocity, &cov);
+        const estimation::EkfStatus st = neighbour_ekfs_[j].Process(m, e.euler, e.velocity, &cov);
+        if (st == estimation::EkfStatus::kAccepted && std::isfinite(m.stamp)) {
+          // A run of acceptances is broken by a gap longer than the reacquisition time.
+          if (!std::isfinite(neighbour_seen_[j]) ||
+              m.stamp - neighbour_seen_[j] > config_.safety.neighbour_reacquire_time) {
+            neighbour_seen_since_[j] = m.stamp;
+          }
+          neighbour_seen_[j] =
+              std::max(m.stamp, std::isfinite(neighbour_seen_[j]) ? neighbour_seen_[j] : m.stamp);
+        }
       }
       break;
     }
@@ -426,6 +512,34 @@ void VehicleController::Blend(double t, double* thrust, double* roll, double* pi
   *pitch = (1.0 - a) * blend_from_[2] + a * *pitch;
 }
 
+// Hysteresis on the neighbours' accepted relative measurements: lost after
+// neighbour_timeout without one, back after a run of neighbour_reacquire_time.
+void VehicleController::UpdateNeighbourPresence(double t) {
+  for (std::size_t j = 0; j < neighbour_active_.size(); ++j) {
+    const double seen = neighbour_seen_[j];
+    const bool fresh = std::isfinite(seen) && t - seen <= config_.safety.neighbour_timeout;
+    if (neighbour_active_[j] && !fresh && std::isfinite(nmpc_start_)) {
+      neighbour_active_[j] = 0;
+    } else if (!neighbour_active_[j] && fresh &&
+               seen - neighbour_seen_since_[j] >= config_.safety.neighbour_reacquire_time) {
+      neighbour_active_[j] = 1;
+    }
+  }
+}
+
+// The NMPC can run on the estimate: the own state is valid and finite and (follower) at
+// least one neighbour in the cost has a finite estimate.
+bool VehicleController::EstimateUsable() const {
+  const auto& own = estimates_.own;
+  if (!own.valid || !own.velocity.allFinite() || !own.euler.allFinite()) return false;
+  if (config_.leader) return own.position.allFinite();
+  bool any = false;
+  for (std::size_t j = 0; j < estimates_.neighbours.size(); ++j) {
+    if (neighbour_active_[j] && estimates_.neighbours[j].allFinite()) any = true;
+  }
+  return any;
+}
+
 ControlOutput VehicleController::Control(double t) {
   estimates_.own = ekf_.initialized() ? ekf_.Estimate(t) : estimation::VehicleEstimate{};
   const estimation::VehicleEstimate& own = estimates_.own;
@@ -438,14 +552,20 @@ ControlOutput VehicleController::Control(double t) {
       estimates_.neighbours[j].setConstant(kNaN);
     }
   }
+  UpdateNeighbourPresence(t);
   const ControlOutput out = Step(t);
   if (ekf_.initialized()) ekf_.SetCommand(t, out.thrust, out.roll, out.pitch, out.yaw);
   return out;
 }
 
+void VehicleController::Diagnose(ControlOutput* out) {
+  if (out == nullptr || !out->nmpc || !nmpc_started_) return;
+  nmpc_->Diagnose(&out->kkt, &out->cost);
+}
+
 std::vector<Vec3> VehicleController::PredictedPositions() const {
   std::vector<Vec3> out;
-  if (phase_ != FlightPhase::kNmpc || !nmpc_) return out;
+  if (phase_ != FlightPhase::kNmpc || !nmpc_started_) return out;
   const Vec3 origin =
       estimates_.own.position.allFinite() ? Vec3(estimates_.own.position) : Vec3(Vec3::Zero());
   nmpc_->Predicted(origin, &out);
@@ -459,8 +579,40 @@ ControlOutput VehicleController::ControlWithEstimates(
   for (std::size_t j = 0; j < estimates_.neighbours.size(); ++j) {
     estimates_.neighbours[j] =
         j < neighbours.size() ? neighbours[j] : estimation::NeighbourStateVec::Constant(kNaN);
+    // Given estimates count as fresh measurements of the neighbours they describe.
+    if (estimates_.neighbours[j].allFinite()) {
+      if (!std::isfinite(neighbour_seen_[j])) neighbour_seen_since_[j] = t;
+      neighbour_seen_[j] = t;
+    }
   }
+  UpdateNeighbourPresence(t);
   return Step(t);
+}
+
+void VehicleController::TriggerFailsafe(double t) {
+  if (phase_ == FlightPhase::kLanded || phase_ == FlightPhase::kIdle || ladder_.failsafe()) return;
+  ladder_.Trigger(RecoveryReason::kCommanded);
+  EnterFailsafe(t, RecoveryReason::kCommanded);
+}
+
+void VehicleController::EnterFailsafe(double t, RecoveryReason reason) {
+  failsafe_reason_ = reason;
+  phase_ = FlightPhase::kFailsafe;
+  phase_start_ = t;
+  const double z = Height();
+  z_ref_ = std::isfinite(z) ? z : kNaN;
+  pid_.Reset(std::isfinite(last_command_[0]) ? last_command_[0] : config_.params.mass * kGravity);
+  blend_from_ = Vec3::Constant(kNaN);  // the failsafe acts at once
+}
+
+// Touchdown: on the ground (height within the margin) and no longer moving down, so the
+// motors never stop while the vehicle still falls.
+bool VehicleController::TouchedDown(double z) const {
+  const double ground = config_.ground_height;
+  const auto& own = estimates_.own;
+  const bool settled = std::isfinite(own.velocity.z()) && std::abs(own.velocity.z()) < 0.1;
+  return std::isfinite(z) && z < ground + config_.touchdown_margin && z_ref_ < ground &&
+         (settled || z_ref_ <= ground - 0.3);
 }
 
 ControlOutput VehicleController::Step(double t) {
@@ -474,6 +626,7 @@ ControlOutput VehicleController::Step(double t) {
   if (!std::isfinite(yaw_ref_) && own.valid && std::isfinite(own.euler.z()))
     yaw_ref_ = own.euler.z();
   out.yaw = std::isfinite(yaw_ref_) ? yaw_ref_ : 0.0;
+  for (char a : neighbour_active_) out.active_neighbours += a != 0 ? 1 : 0;
 
   double thrust = kNaN, roll = kNaN, pitch = kNaN;
   const double z = Height();
@@ -528,14 +681,9 @@ ControlOutput VehicleController::Step(double t) {
         nmpc_start_ = t;
         blend_from_ = last_command_;
         blend_start_ = t;
-        if (config_.leader) {
-          anchor_ = Vec3(own.position.x(), own.position.y(), h);
-          nmpc_ = std::make_unique<LeaderCore>(config_, anchor_, yaw_ref_);
-        } else if (config_.neighbours.size() == 1) {
-          nmpc_ = std::make_unique<FollowerCore<1>>(config_, yaw_ref_);
-        } else {
-          nmpc_ = std::make_unique<FollowerCore<2>>(config_, yaw_ref_);
-        }
+        if (config_.leader) anchor_ = Vec3(own.position.x(), own.position.y(), h);
+        nmpc_->Engage(anchor_, yaw_ref_);
+        reinit_pending_ = true;  // the first step iterates to convergence
       }
       break;
     }
@@ -549,48 +697,95 @@ ControlOutput VehicleController::Step(double t) {
       roll = c.roll;
       pitch = c.pitch;
       Blend(t, &thrust, &roll, &pitch);
-      // Touchdown: on the ground (height within the margin) and no longer moving down,
-      // so the motors never stop while the vehicle still falls.
-      const bool settled = std::isfinite(own.velocity.z()) && std::abs(own.velocity.z()) < 0.1;
-      if (std::isfinite(z) && z < ground + config_.touchdown_margin && z_ref_ < ground &&
-          (settled || z_ref_ <= ground - 0.3)) {
+      if (TouchedDown(z)) {
         phase_ = FlightPhase::kLanded;
         phase_start_ = t;
         thrust = roll = pitch = 0.0;
       }
       break;
     }
+    case FlightPhase::kFailsafe:
+      break;  // below
   }
 
   if (phase_ == FlightPhase::kNmpc) {
-    NmpcInput in;
-    in.t = t;
-    in.position = own.position;
-    in.own << own.velocity, own.euler;
-    for (std::size_t j = 0; j < estimates_.neighbours.size() && j < 2; ++j) {
-      const auto& x = estimates_.neighbours[j];
-      in.neighbours[j] = {x.segment<3>(0), x.segment<3>(3), x[6], x[7]};
+    RecoveryDecision d;
+    if (EstimateUsable()) {
+      NmpcInput in;
+      in.t = t;
+      in.position = own.position;
+      in.own << own.velocity, own.euler;
+      in.height = z;
+      for (std::size_t j = 0; j < estimates_.neighbours.size() && j < 2; ++j) {
+        const auto& x = estimates_.neighbours[j];
+        in.active[j] = neighbour_active_[j] != 0 && x.allFinite();
+        in.neighbours[j] = {x.segment<3>(0), x.segment<3>(3), x[6], x[7]};
+      }
+      if (reinit_pending_) {
+        const Vec3 guess = last_command_.allFinite()
+                               ? last_command_
+                               : Vec3(config_.params.mass * kGravity, 0.0, 0.0);
+        nmpc_->Start(in, guess);
+        reinit_pending_ = false;
+        nmpc_started_ = true;
+      }
+      const NmpcStep s = nmpc_->Step(in);
+      out.nmpc = true;
+      out.nmpc_thrust = s.u[0];
+      out.nmpc_roll = s.u[1];
+      out.nmpc_pitch = s.u[2];
+      out.solver_time = s.stats.time_total;
+      out.solver_cpu_time = s.cpu_time;
+      out.sqp_iterations = s.stats.sqp_iterations;
+      out.qp_iterations = s.stats.qp_iterations;
+      out.fallback = s.stats.fallback;
+      out.status = s.stats.status;
+      out.reference = s.reference;
+      if (out.fallback) ++fallbacks_;
+      thrust = s.u[0];
+      roll = s.u[1];
+      pitch = s.u[2];
+      Blend(t, &thrust, &roll, &pitch);
+      d = ladder_.Update(t, true, out.fallback);
+    } else {
+      // No estimate to run on: level attitude with the last thrust until the ladder's
+      // timeout hands over to the failsafe controller.
+      thrust = last_command_[0];
+      roll = pitch = 0.0;
+      d = ladder_.Update(t, false, false);
     }
-    if (t == nmpc_start_) nmpc_->Start(in, last_command_);
-    const NmpcStep s = nmpc_->Step(in);
-    out.nmpc = true;
-    out.nmpc_thrust = s.u[0];
-    out.nmpc_roll = s.u[1];
-    out.nmpc_pitch = s.u[2];
-    out.cost = s.cost;
-    out.kkt = s.kkt;
-    out.solver_time = s.stats.time_total;
-    out.solver_cpu_time = s.cpu_time;
-    out.sqp_iterations = s.stats.sqp_iterations;
-    out.qp_iterations = s.stats.qp_iterations;
-    out.fallback = s.stats.fallback;
-    out.status = s.stats.status;
-    out.reference = s.reference;
-    if (out.fallback) ++fallbacks_;
-    thrust = s.u[0];
-    roll = s.u[1];
-    pitch = s.u[2];
-    Blend(t, &thrust, &roll, &pitch);
+    out.recovery = d.action;
+    out.recovery_reason = d.reason;
+    if (d.action == RecoveryAction::kReinitialise) reinit_pending_ = true;
+    if (d.action == RecoveryAction::kFailsafe) EnterFailsafe(t, d.reason);
+  }
+
+  if (phase_ == FlightPhase::kFailsafe) {
+    // Hold the altitude with the attitude level, then descend; from the height if known,
+    // else from the vertical speed, else at a thrust just below hover.
+    const double fs = config_.safety.recovery.failsafe_descent_speed;
+    const bool descending = t - phase_start_ >= config_.safety.recovery.failsafe_hold_time;
+    const double vz_ref = descending ? -fs : 0.0;
+    const double hover = config_.params.mass * kGravity;
+    if (std::isfinite(z)) {
+      if (!std::isfinite(z_ref_)) z_ref_ = z;
+      if (descending) z_ref_ = std::max(ground - 0.3, z_ref_ - fs * dt);
+      // Level: no horizontal damping (the horizontal estimate may be what failed).
+      const double vz = std::isfinite(own.velocity.z()) ? own.velocity.z() : 0.0;
+      const PidCommand c = pid_.Update(dt, z_ref_, vz_ref, z, Vec3(0.0, 0.0, vz), Vec3::Zero());
+      thrust = c.thrust;
+      if (TouchedDown(z)) {
+        phase_ = FlightPhase::kLanded;
+        phase_start_ = t;
+        thrust = 0.0;
+      }
+    } else if (std::isfinite(own.velocity.z())) {
+      thrust = hover + config_.params.mass * config_.pid.kd_z * (vz_ref - own.velocity.z());
+    } else {
+      thrust = descending ? kFailsafeBlindThrustFactor * hover : hover;
+    }
+    roll = pitch = 0.0;
+    thrust = std::clamp(thrust, 0.0, config_.pid.max_thrust);
   }
 
   // ---- Guard: a non-finite estimate or solution never becomes a command.

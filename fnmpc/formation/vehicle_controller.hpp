@@ -11,6 +11,7 @@
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/estimation/neighbour_ekf.hpp"
 #include "fnmpc/estimation/vehicle_ekf.hpp"
+#include "fnmpc/formation/recovery.hpp"
 #include "fnmpc/formation/takeoff_pid.hpp"
 #include "fnmpc/formation/trajectory.hpp"
 #include "fnmpc/model/vehicle_params.hpp"
@@ -43,11 +44,12 @@ struct NeighbourTarget {
 
 /// Phases of a flight.
 enum class FlightPhase : int {
-  kIdle = 0,     ///< on the ground, motors off, estimators converging
-  kTakeoff = 1,  ///< PID climb to the take-off height
-  kNmpc = 2,     ///< NMPC in control (first blend_time blended from the PID's last command)
-  kLanding = 3,  ///< PID descent
-  kLanded = 4,   ///< touched down, motors off
+  kIdle = 0,      ///< on the ground, motors off, estimators converging
+  kTakeoff = 1,   ///< PID climb to the take-off height
+  kNmpc = 2,      ///< NMPC in control (first blend_time blended from the PID's last command)
+  kLanding = 3,   ///< PID descent
+  kLanded = 4,    ///< touched down, motors off
+  kFailsafe = 5,  ///< failsafe controller: level hover, then descent (see RecoveryLadder)
 };
 std::string_view ToString(FlightPhase p);
 
@@ -61,7 +63,8 @@ struct ControllerConfig {
   NmpcWeights weights;
   double thrust_min = 5.0, thrust_max = 25.0;  ///< NMPC thrust bounds [N]
   double max_attitude_ref = 0.35;              ///< |roll_ref|, |pitch_ref| bound [rad]
-  double max_speed = 2.0;                      ///< |v_i| bound of the leader [m/s]
+  double max_speed = 2.0;  ///< soft |v_i| bound [m/s] (state bounds are soft: never infeasible)
+  SafetyConfig safety;     ///< altitude envelope, neighbour loss, recovery ladder, failsafe
   // Follower only.
   std::vector<NeighbourTarget> neighbours;               ///< 1 or 2 neighbours
   ocp::TargetFrame frame = ocp::TargetFrame::kInertial;  ///< frame of `desired`
@@ -106,6 +109,10 @@ struct ControlOutput {
   int sqp_iterations = 0, qp_iterations = 0;
   bool fallback = false;
   rti::RtiStatus status = rti::RtiStatus::kSuccess;
+  /// Recovery ladder: the action taken at this step and why (kNone: nothing happened).
+  RecoveryAction recovery = RecoveryAction::kNone;
+  RecoveryReason recovery_reason = RecoveryReason::kNone;
+  int active_neighbours = 0;              ///< follower: neighbours in the cost at this step
   Vec3 reference = Vec3::Constant(kNaN);  ///< leader position reference [m]
   double voltage = kNaN;                  ///< filtered measured battery voltage [V]
 };
@@ -130,8 +137,14 @@ class VehicleController {
 
   /// Routes one measurement to the estimators (others' measurements are ignored).
   void Process(const Measurement& m);
-  /// One control step at time t [s]: estimate -> NMPC or PID -> command.
+  /// One control step at time t [s]: estimate -> NMPC or PID -> command. The command path
+  /// only: call Diagnose() after the command was sent for the KKT value and the cost.
   ControlOutput Control(double t);
+  /// Fills out->kkt and out->cost of the NMPC step that produced `out` (the last one).
+  /// Costs N more integrations; outside the command path.
+  void Diagnose(ControlOutput* out);
+  /// Hands over to the failsafe controller now (fault injection, operator).
+  void TriggerFailsafe(double t);
   /// The same step with the estimates given instead of taken from the filters (own state
   /// in {n} for the leader, {m} for a follower; neighbours in NeighbourStateIndex layout, one
   /// per configured neighbour). For tests and external estimators; NaN entries are allowed
@@ -146,6 +159,13 @@ class VehicleController {
   [[nodiscard]] std::int64_t estimator_rejections() const;
   /// Number of NMPC fallbacks so far.
   [[nodiscard]] long fallbacks() const { return fallbacks_; }
+  /// Solver re-initialisations by the recovery ladder so far.
+  [[nodiscard]] long reinitialisations() const { return ladder_.reinitialisations(); }
+  /// Whether the failsafe controller took over, and why.
+  [[nodiscard]] bool failsafe() const { return ladder_.failsafe(); }
+  [[nodiscard]] RecoveryReason failsafe_reason() const { return failsafe_reason_; }
+  /// Follower: whether neighbour j (configuration order) is in the cost.
+  [[nodiscard]] bool neighbour_active(std::size_t j) const { return neighbour_active_.at(j); }
   /// Estimates used by the last Control() call.
   [[nodiscard]] const ControllerEstimates& estimates() const { return estimates_; }
   /// Start of the NMPC phase [s] (NaN before).
@@ -161,6 +181,10 @@ class VehicleController {
   ControlOutput Step(double t);
   double Height() const;
   void Blend(double t, double* thrust, double* roll, double* pitch) const;
+  bool EstimateUsable() const;
+  void UpdateNeighbourPresence(double t);
+  void EnterFailsafe(double t, RecoveryReason reason);
+  bool TouchedDown(double z) const;
 
   ControllerConfig config_;
   estimation::VehicleEkf ekf_;
@@ -184,6 +208,14 @@ class VehicleController {
   Vec3 last_command_ = Vec3::Constant(kNaN);  // last valid (thrust, roll, pitch)
   long fallbacks_ = 0;
   ControllerEstimates estimates_;
+  RecoveryLadder ladder_;
+  RecoveryReason failsafe_reason_ = RecoveryReason::kNone;
+  bool nmpc_started_ = false;
+  bool reinit_pending_ = false;
+  // Follower: neighbour presence (hysteresis on accepted relative measurements).
+  std::vector<double> neighbour_seen_;        // stamp of the last accepted measurement [s]
+  std::vector<double> neighbour_seen_since_;  // start of the current run of acceptances [s]
+  std::vector<char> neighbour_active_;
 };
 
 }  // namespace fnmpc::formation

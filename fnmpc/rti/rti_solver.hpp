@@ -173,6 +173,27 @@ class RtiSolver {
     w_n_ = w_terminal;
     BuildCostPatterns();
   }
+  /// New weight values within the cost sparsity found by the last SetWeights: a weighted
+  /// row may get weight zero (it then contributes nothing) but a row unweighted there may
+  /// not become weighted. Keeps the patterns, so no allocation (SetWeights rebuilds them).
+  /// Throws std::invalid_argument for a row outside the pattern.
+  void SetWeightValues(const Y& w, const YN& w_terminal) {
+    auto in = [](const std::vector<int>& rows, int r) {
+      return std::find(rows.begin(), rows.end(), r) != rows.end();
+    };
+    for (int r = 0; r < kNy; ++r) {
+      if (w[r] != 0.0 && !in(weighted_rows_, r))
+        throw std::invalid_argument("[RtiSolver] SetWeightValues: stage row " +
+                                    std::to_string(r) + " is outside the cost pattern");
+    }
+    for (int r = 0; r < kNyN; ++r) {
+      if (w_terminal[r] != 0.0 && !in(weighted_rows_n_, r))
+        throw std::invalid_argument("[RtiSolver] SetWeightValues: terminal row " +
+                                    std::to_string(r) + " is outside the cost pattern");
+    }
+    w_ = w;
+    w_n_ = w_terminal;
+  }
   /// Reference of stage k = 0..N-1.
   void SetReference(int k, const Y& yref) { yref_[k] = yref; }
   void SetTerminalReference(const YN& yref) { yref_n_ = yref; }

@@ -200,6 +200,9 @@ fnmpc_ros::SolverDiagnostics ToDiagnostics(const formation::ControlOutput& out,
   d.nmpc_pitch = out.nmpc_pitch;
   d.reference = ToPoint(out.reference);
   d.voltage = out.voltage;
+  d.recovery = std::string(formation::ToString(out.recovery));
+  d.recovery_reason = std::string(formation::ToString(out.recovery_reason));
+  d.active_neighbours = out.active_neighbours;
   const auto& nbs = c.config().neighbours;
   for (std::size_t j = 0; j < nbs.size(); ++j) {
     d.neighbour_ids.push_back(nbs[j].vehicle);

@@ -144,9 +144,10 @@ class VehicleNode {
   }
 
   void Step(double t) {
-    const formation::ControlOutput out = controller_->Control(t);
+    formation::ControlOutput out = controller_->Control(t);
     last_setpoint_ = ToSetpoint(out);
     setpoint_pub_.publish(last_setpoint_);
+    controller_->Diagnose(&out);  // KKT value and cost after the command went out
     last_answered_ = t;
     diag_pub_.publish(ToDiagnostics(out, *controller_));
     const auto& e = controller_->estimates().own;

@@ -1,0 +1,226 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Safety behaviour of the VehicleController: soft state bounds, the recovery ladder and the
+// failsafe controller, neighbour loss, and no allocation in flight (malloc level).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <vector>
+
+#include "fnmpc/formation/vehicle_controller.hpp"
+#include "tests/formation/controller_test_support.hpp"
+#include "tests/support/malloc_counter.hpp"
+
+namespace fnmpc::formation {
+namespace {
+
+using testing::BaseConfig;
+using testing::Fly;
+using testing::kGround;
+using testing::kTs;
+using testing::Plant;
+
+TEST(MallocCounterTest, SeesDirectAndEigenAllocations) {
+  // The counter must be able to fail: a direct malloc and a dynamic Eigen matrix are seen.
+  void* volatile p = nullptr;
+  EXPECT_EQ(::fnmpc::testing::CountMallocs([&] { p = std::malloc(64); }), 1);
+  std::free(p);
+  EXPECT_GE(::fnmpc::testing::CountMallocs([] {
+              Eigen::MatrixXd m(40, 40);
+              m.setOnes();
+              volatile double s = m.sum();
+              (void)s;
+            }),
+            1);
+  EXPECT_EQ(::fnmpc::testing::CountMallocs([] {}), 0);
+}
+
+TEST(SafetyTest, LeaderOverSpeedComesBackWithoutFallback) {
+  // Given a leader hovering under the NMPC
+  VehicleController c(BaseConfig(true));
+  Plant plant;
+  double t = 0.0;
+  for (; t <= 6.0; t += kTs) plant.Step(c.ControlWithEstimates(t, plant.Estimate(t), {}));
+  ASSERT_EQ(c.phase(), FlightPhase::kNmpc);
+  // When it is pushed to 2.05 m/s, beyond its 2 m/s speed bound
+  plant.x[3] = 2.05;
+  double back = kNaN;
+  for (double s = 0.0; s <= 2.0; s += kTs, t += kTs) {
+    const ControlOutput o = c.ControlWithEstimates(t, plant.Estimate(t), {});
+    // Then every QP is feasible (soft state bounds): no fallback
+    EXPECT_FALSE(o.fallback) << "t = " << t;
+    EXPECT_EQ(o.status, rti::RtiStatus::kSuccess);
+    plant.Step(o);
+    if (std::isnan(back) && plant.x.segment<3>(3).cwiseAbs().maxCoeff() <= 2.0) back = s + kTs;
+  }
+  // and it is back within its bound in at most 1 s
+  ASSERT_TRUE(std::isfinite(back));
+  EXPECT_LE(back, 1.0);
+  EXPECT_EQ(c.fallbacks(), 0);
+}
+
+TEST(SafetyTest, LeaderKeepsMinimumAltitudeWithWaypointBelowGround) {
+  // Given a leader whose trajectory goes 2 m down from its 1 m hover point
+  ControllerConfig cfg = BaseConfig(true);
+  cfg.trajectory = WaypointTrajectory::Uniform({Vec3::Zero(), Vec3(0, 0, -2.0)}, 3.0, 5.0);
+  cfg.trajectory_start = 5.0;
+  VehicleController c(cfg);
+  Plant plant;
+  double zmin = kInf;
+  for (double t = 0.0; t <= 14.0; t += kTs) {
+    const ControlOutput o = c.ControlWithEstimates(t, plant.Estimate(t), {});
+    plant.Step(o);
+    if (c.phase() == FlightPhase::kNmpc) zmin = std::min(zmin, plant.x[2]);
+    EXPECT_FALSE(o.fallback);
+  }
+  // Then the soft altitude bound keeps it above the ground (min_altitude 0.3 m, a few cm
+  // of slack allowed by the exact penalty's linearisation)
+  EXPECT_GT(zmin, cfg.safety.min_altitude - 0.05);
+  EXPECT_LT(zmin, 0.45);  // it did go down as far as allowed
+}
+
+TEST(SafetyTest, UnusableEstimateHandsOverToFailsafeThatLands) {
+  // Given a leader hovering under the NMPC
+  ControllerConfig cfg = BaseConfig(true);
+  VehicleController c(cfg);
+  Plant plant;
+  double t = 0.0;
+  for (; t <= 6.0; t += kTs) plant.Step(c.ControlWithEstimates(t, plant.Estimate(t), {}));
+  ASSERT_EQ(c.phase(), FlightPhase::kNmpc);
+  // When its horizontal estimate is lost (velocity NaN) for longer than the timeout
+  bool failsafe_logged = false;
+  double t_fs = kNaN;
+  for (double s = 0.0; s < 1.0; s += kTs, t += kTs) {
+    estimation::VehicleEstimate e = plant.Estimate(t);
+    e.velocity.x() = kNaN;
+    const ControlOutput o = c.ControlWithEstimates(t, e, {});
+    if (o.recovery == RecoveryAction::kFailsafe) {
+      failsafe_logged = true;
+      t_fs = s;
+      EXPECT_EQ(o.recovery_reason, RecoveryReason::kEstimateUnusable);
+    }
+    EXPECT_TRUE(std::isfinite(o.thrust));
+    plant.Step(o);
+  }
+  // Then the ladder hands over after estimate_timeout, says why, and the failsafe holds level
+  ASSERT_TRUE(failsafe_logged);
+  EXPECT_NEAR(t_fs, cfg.safety.recovery.estimate_timeout, kTs + 1e-9);
+  EXPECT_TRUE(c.failsafe());
+  EXPECT_EQ(c.failsafe_reason(), RecoveryReason::kEstimateUnusable);
+  // and lands: descends at the failsafe rate and stops the motors on the ground
+  double vz_min = 0.0;
+  for (double s = 0.0; s < 10.0 && c.phase() != FlightPhase::kLanded; s += kTs, t += kTs) {
+    estimation::VehicleEstimate e = plant.Estimate(t);
+    e.velocity.x() = kNaN;
+    const ControlOutput o = c.ControlWithEstimates(t, e, {});
+    EXPECT_EQ(o.roll, 0.0);
+    EXPECT_EQ(o.pitch, 0.0);
+    plant.Step(o);
+    vz_min = std::min(vz_min, plant.x[5]);
+  }
+  EXPECT_EQ(c.phase(), FlightPhase::kLanded);
+  EXPECT_NEAR(plant.x[2], kGround, 0.02);
+  EXPECT_GT(vz_min, -(cfg.safety.recovery.failsafe_descent_speed + 0.15));
+}
+
+TEST(SafetyTest, CommandedFailsafeLandsFromAnyHeight) {
+  ControllerConfig cfg = BaseConfig(true);
+  cfg.takeoff_height = 2.0;
+  VehicleController c(cfg);
+  Plant plant;
+  double t = 0.0;
+  for (; t <= 9.0; t += kTs) plant.Step(c.ControlWithEstimates(t, plant.Estimate(t), {}));
+  ASSERT_EQ(c.phase(), FlightPhase::kNmpc);
+  c.TriggerFailsafe(t);
+  EXPECT_EQ(c.failsafe_reason(), RecoveryReason::kCommanded);
+  for (double s = 0.0; s < 15.0 && c.phase() != FlightPhase::kLanded; s += kTs, t += kTs)
+    plant.Step(c.ControlWithEstimates(t, plant.Estimate(t), {}));
+  EXPECT_EQ(c.phase(), FlightPhase::kLanded);
+  EXPECT_NEAR(plant.x[2], kGround, 0.02);
+}
+
+/// A follower with two neighbours hovering still; neighbour 1 disappears at t_loss and
+/// comes back at t_back. Returns the outputs.
+std::vector<ControlOutput> FlyFollowerWithLoss(VehicleController* c, Plant* plant, double t_loss,
+                                               double t_back, double until) {
+  const Vec3 p0(1.3, -0.8, 1.1), p1(-1.0, -1.2, 1.0);
+  std::vector<estimation::NeighbourStateVec> nb(2);
+  std::vector<ControlOutput> out;
+  for (double t = 0.0; t <= until; t += kTs) {
+    estimation::VehicleEstimate e = plant->Estimate(t);
+    e.position.z() -= kGround;
+    nb[0].setZero();
+    nb[0].head<3>() = p0 - plant->x.head<3>();
+    nb[1].setZero();
+    nb[1].head<3>() = p1 - plant->x.head<3>();
+    if (t >= t_loss && t < t_back) nb[1].setConstant(kNaN);
+    out.push_back(c->ControlWithEstimates(t, e, nb));
+    plant->Step(out.back());
+  }
+  return out;
+}
+
+TEST(SafetyTest, LostNeighbourLeavesTheCostAndReturnsWithHysteresis) {
+  // Given a follower whose two neighbours' desired offsets are inconsistent by 0.6 m in y
+  ControllerConfig cfg = BaseConfig(false);
+  cfg.neighbours = {{0, Vec3(1.0, -1.0, 0.0)}, {2, Vec3(-1.3, -1.4 + 0.6, 0.0)}};
+  VehicleController c(cfg);
+  Plant plant;
+  // When neighbour 1 is lost at 10 s and seen again from 16 s
+  const auto out = FlyFollowerWithLoss(&c, &plant, 10.0, 16.0, 24.0);
+  auto at = [&out](double t) { return out[static_cast<std::size_t>(std::lround(t / kTs))]; };
+  // Then it flies with both, then only neighbour 0 after the timeout, then both again
+  // after the reacquisition time
+  EXPECT_EQ(at(9.9).active_neighbours, 2);
+  EXPECT_EQ(at(10.0 + cfg.safety.neighbour_timeout + 0.1).active_neighbours, 1);
+  EXPECT_EQ(at(16.0 + cfg.safety.neighbour_reacquire_time + 0.15).active_neighbours, 2);
+  // and without neighbour 1 it holds neighbour 0's offset alone (the compromise is gone)
+  const Vec3 p0(1.3, -0.8, 1.1);
+  std::vector<ControlOutput> tail;
+  Plant check;
+  VehicleController c2(cfg);
+  FlyFollowerWithLoss(&c2, &check, 10.0, 1e9, 15.5);
+  EXPECT_LT(((p0 - check.x.head<3>()) - Vec3(1.0, -1.0, 0.0)).norm(), 0.03);
+  // and nothing fell back, nothing handed over to the failsafe
+  EXPECT_EQ(c.fallbacks(), 0);
+  EXPECT_FALSE(c.failsafe());
+}
+
+TEST(SafetyTest, NoAllocationFromTakeoffToLanding) {
+  // Given a leader and a follower built (all allocation happens here)
+  ControllerConfig lc = BaseConfig(true);
+  lc.landing_time = 9.0;
+  ControllerConfig fc = BaseConfig(false);
+  fc.landing_time = 14.0;
+  VehicleController leader(lc), follower(fc);
+  Plant pl, pf;
+  const Vec3 p0(1.3, -0.8, 1.1);
+  std::vector<estimation::NeighbourStateVec> nb(1);
+  estimation::NeighbourStateVec lost = estimation::NeighbourStateVec::Constant(kNaN);
+  // When both fly take-off, NMPC (the follower losing its only neighbour estimate for longer
+  // than estimate_timeout: the failsafe lands it)
+  // and landing, with the diagnostics after each command
+  const long n = ::fnmpc::testing::CountMallocs([&] {
+    for (double t = 0.0; t <= 20.0; t += kTs) {
+      ControlOutput o = leader.ControlWithEstimates(t, pl.Estimate(t), {});
+      leader.Diagnose(&o);
+      pl.Step(o);
+      estimation::VehicleEstimate e = pf.Estimate(t);
+      e.position.z() -= kGround;
+      nb[0].setZero();
+      nb[0].head<3>() = p0 - pf.x.head<3>();
+      std::vector<estimation::NeighbourStateVec>& given = nb;
+      if (t > 8.0 && t < 8.6) given[0] = lost;
+      ControlOutput f = follower.ControlWithEstimates(t, e, given);
+      follower.Diagnose(&f);
+      pf.Step(f);
+    }
+  });
+  // Then no C allocation call was made, and both landed
+  EXPECT_EQ(n, 0);
+  EXPECT_EQ(leader.phase(), FlightPhase::kLanded);
+  EXPECT_EQ(follower.phase(), FlightPhase::kLanded);
+}
+
+}  // namespace
+}  // namespace fnmpc::formation
