@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "fnmpc/estimation/neighbour_ekf.hpp"
 #include "synthetic_truth.hpp"
 #include "tests/support/allocation_counter.hpp"
 
@@ -454,6 +455,37 @@ TEST(VehicleEkfTest, NoHeapAllocationAfterConstruction) {
       ekf.Process(m);
       ekf.SetCommand(m.stamp, 13.0, 0.0, 0.0, 0.4);
       sum += ekf.Estimate(m.stamp + 0.01).position.z();
+    }
+  });
+  // Then no operator new was called
+  EXPECT_EQ(allocations, 0);
+  EXPECT_TRUE(std::isfinite(sum));
+  EXPECT_GT(ekf.counters().replays, 0);
+}
+
+// Here because this translation unit holds the allocation counter (one per test binary).
+TEST(NeighbourEkfAllocationTest, NoHeapAllocationInProcessPredictAndEstimate) {
+  // Given a neighbour filter and relative measurements, some straight above, some late
+  NeighbourEkf ekf(NeighbourEkfConfig{});
+  std::vector<Measurement> ms;
+  for (int k = 0; k < 200; ++k) {
+    Measurement m;
+    m.kind = SensorKind::kRelative;
+    m.vehicle = 0;
+    m.stamp = 0.02 * k - ((k % 7 == 3) ? 0.05 : 0.0);
+    const Vec3 offset = k < 100 ? Vec3(1.5, 0.5, 0.2) : Vec3(0.0, 0.0, 0.5);
+    m.relative = testing::TrueRelative(Vec3::Zero(), Vec3::Zero(), offset, 0.3, 1);
+    ms.push_back(m);
+  }
+  const Mat3 cov = Mat3::Identity() * 4e-6;
+  // When processing, predicting and estimating (with health)
+  double sum = 0.0;
+  const long allocations = ::fnmpc::testing::CountAllocations([&] {
+    for (const Measurement& m : ms) {
+      ekf.Process(m, Vec3::Zero(), Vec3::Zero(), &cov);
+      ekf.PredictTo(m.stamp + 0.01, Vec3::Zero());
+      const NeighbourEstimate e = ekf.EstimateAt(m.stamp + 0.02, Vec3::Zero());
+      sum += e.x(0) + (e.valid ? 1.0 : 0.0) + ekf.StateAt(m.stamp + 0.03, Vec3::Zero())(2);
     }
   });
   // Then no operator new was called
