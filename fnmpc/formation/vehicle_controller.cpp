@@ -385,6 +385,14 @@ estimation::VehicleEkfConfig OwnEkfConfig(const ControllerConfig& c) {
 /// Failsafe descent without height or vertical speed: a thrust just below hover (about
 /// 0.3 m/s^2 down) so that the vehicle sinks slowly instead of holding an unknown height.
 constexpr double kFailsafeBlindThrustFactor = 0.97;
+/// Motion-capture height: older than this is not used, a longer gap restarts its rate [s].
+constexpr double kMaxMocapGap = 0.5;
+/// First-order filter of the motion-capture height's rate [s] (1 mm noise at 60 Hz: about
+/// 0.03 m/s left).
+constexpr double kMocapRateFilterTime = 0.1;
+/// Vertical consistency check: EKF v_z against the motion-capture rate [m/s], for [s].
+constexpr double kVerticalSpeedMismatch = 1.0;
+constexpr double kVerticalMismatchTime = 0.3;
 
 bool Rejected(estimation::EkfStatus s) {
   using estimation::EkfStatus;
@@ -434,11 +442,9 @@ void VehicleController::Process(const Measurement& m) {
     case SensorKind::kMocapPose:
       // The leader fuses mocap; a follower has no absolute position: only the height is
       // kept, for the take-off and landing PID.
-      if (config_.leader) {
-        ekf_.Process(m);
-      } else if (std::isfinite(m.position.z())) {
-        mocap_z_ = m.position.z();
-      }
+      if (config_.leader) ekf_.Process(m);
+      if (!config_.leader && std::isfinite(m.position.z())) mocap_z_ = m.position.z();
+      TrackMocapHeight(m);
       break;
     case SensorKind::kCompass:
       if (!config_.leader && !ekf_.initialized() && std::isfinite(m.yaw)) {
@@ -527,11 +533,57 @@ void VehicleController::UpdateNeighbourPresence(double t) {
   }
 }
 
+// Raw motion-capture height and its filtered rate, kept apart from the EKF: the failsafe's
+// height loop and the vertical consistency check must not depend on the estimate they check.
+void VehicleController::TrackMocapHeight(const Measurement& m) {
+  const double z = m.position.z();
+  if (!std::isfinite(z) || !std::isfinite(m.stamp)) return;
+  const double dt = std::isfinite(raw_z_stamp_) ? m.stamp - raw_z_stamp_ : kInf;
+  if (dt > 0.0 && dt <= kMaxMocapGap) {
+    const double a = 1.0 - std::exp(-dt / kMocapRateFilterTime);
+    raw_vz_ =
+        std::isfinite(raw_vz_) ? raw_vz_ + a * ((z - raw_z_) / dt - raw_vz_) : (z - raw_z_) / dt;
+  } else if (!(dt > 0.0)) {
+    return;  // out of order or repeated: keep the newer sample
+  } else {
+    raw_vz_ = kNaN;  // a gap: restart the rate
+  }
+  raw_z_ = z;
+  raw_z_stamp_ = m.stamp;
+}
+
+bool VehicleController::RawHeightFresh(double t) const {
+  return std::isfinite(raw_z_stamp_) && t - raw_z_stamp_ <= kMaxMocapGap;
+}
+
+// The EKF's vertical speed against the motion-capture height's rate: a disagreement above
+// kVerticalSpeedMismatch for longer than kVerticalMismatchTime marks the estimate unusable
+// (an integrating velocity estimate, e.g. without optical flow, diverges long before its
+// covariance says so).
+void VehicleController::CheckVerticalConsistency(double t) {
+  const double vz = estimates_.own.velocity.z();
+  if (!RawHeightFresh(t) || !std::isfinite(raw_vz_) || !std::isfinite(vz)) {
+    vertical_mismatch_since_ = kNaN;
+    return;
+  }
+  if (std::abs(vz - raw_vz_) <= kVerticalSpeedMismatch) {
+    vertical_mismatch_since_ = kNaN;
+  } else if (!std::isfinite(vertical_mismatch_since_)) {
+    vertical_mismatch_since_ = t;
+  }
+}
+
+bool VehicleController::VerticallyInconsistent(double t) const {
+  return std::isfinite(vertical_mismatch_since_) &&
+         t - vertical_mismatch_since_ >= kVerticalMismatchTime;
+}
+
 // The NMPC can run on the estimate: the own state is valid and finite and (follower) at
 // least one neighbour in the cost has a finite estimate.
-bool VehicleController::EstimateUsable() const {
+bool VehicleController::EstimateUsable(double t) const {
   const auto& own = estimates_.own;
   if (!own.valid || !own.velocity.allFinite() || !own.euler.allFinite()) return false;
+  if (VerticallyInconsistent(t)) return false;
   if (config_.leader) return own.position.allFinite();
   bool any = false;
   for (std::size_t j = 0; j < estimates_.neighbours.size(); ++j) {
@@ -553,6 +605,7 @@ ControlOutput VehicleController::Control(double t) {
     }
   }
   UpdateNeighbourPresence(t);
+  CheckVerticalConsistency(t);
   const ControlOutput out = Step(t);
   if (ekf_.initialized()) ekf_.SetCommand(t, out.thrust, out.roll, out.pitch, out.yaw);
   return out;
@@ -586,7 +639,22 @@ ControlOutput VehicleController::ControlWithEstimates(
     }
   }
   UpdateNeighbourPresence(t);
+  CheckVerticalConsistency(t);
   return Step(t);
+}
+
+// Take-off and landing PID: an estimate unusable for estimate_timeout (the ladder's timer)
+// hands over to the failsafe. Returns true when it did.
+bool VehicleController::PidEstimateLost(double t, double z, ControlOutput* out) {
+  const auto& own = estimates_.own;
+  const bool usable = own.valid && std::isfinite(z) && own.velocity.allFinite() &&
+                      own.euler.allFinite() && !VerticallyInconsistent(t);
+  const RecoveryDecision d = ladder_.Update(t, usable, false);
+  if (d.action != RecoveryAction::kFailsafe) return false;
+  out->recovery = d.action;
+  out->recovery_reason = d.reason;
+  EnterFailsafe(t, d.reason);
+  return true;
 }
 
 void VehicleController::TriggerFailsafe(double t) {
@@ -599,18 +667,24 @@ void VehicleController::EnterFailsafe(double t, RecoveryReason reason) {
   failsafe_reason_ = reason;
   phase_ = FlightPhase::kFailsafe;
   phase_start_ = t;
-  const double z = Height();
+  const double z = FailsafeHeight(t);
   z_ref_ = std::isfinite(z) ? z : kNaN;
   pid_.Reset(std::isfinite(last_command_[0]) ? last_command_[0] : config_.params.mass * kGravity);
   blend_from_ = Vec3::Constant(kNaN);  // the failsafe acts at once
 }
 
+// The failsafe's height: the raw motion-capture height when fresh, else the controller's
+// height if the estimate is still valid.
+double VehicleController::FailsafeHeight(double t) const {
+  if (RawHeightFresh(t)) return raw_z_;
+  return estimates_.own.valid && !VerticallyInconsistent(t) ? Height() : kNaN;
+}
+
 // Touchdown: on the ground (height within the margin) and no longer moving down, so the
 // motors never stop while the vehicle still falls.
-bool VehicleController::TouchedDown(double z) const {
+bool VehicleController::TouchedDown(double z, double vz) const {
   const double ground = config_.ground_height;
-  const auto& own = estimates_.own;
-  const bool settled = std::isfinite(own.velocity.z()) && std::abs(own.velocity.z()) < 0.1;
+  const bool settled = std::isfinite(vz) && std::abs(vz) < 0.1;
   return std::isfinite(z) && z < ground + config_.touchdown_margin && z_ref_ < ground &&
          (settled || z_ref_ <= ground - 0.3);
 }
@@ -656,6 +730,7 @@ ControlOutput VehicleController::Step(double t) {
       thrust = roll = pitch = 0.0;
       break;
     case FlightPhase::kTakeoff: {
+      if (PidEstimateLost(t, z, &out)) break;
       double vz_ref = 0.0;
       if (z_ref_ < h) {
         z_ref_ = std::min(h, z_ref_ + config_.climb_speed * dt);
@@ -690,6 +765,7 @@ ControlOutput VehicleController::Step(double t) {
     case FlightPhase::kNmpc:
       break;  // below
     case FlightPhase::kLanding: {
+      if (PidEstimateLost(t, z, &out)) break;
       z_ref_ = std::max(ground - 0.3, z_ref_ - config_.descent_speed * dt);
       const PidCommand c =
           pid_.Update(dt, z_ref_, -config_.descent_speed, z, own.velocity, own.euler);
@@ -697,7 +773,7 @@ ControlOutput VehicleController::Step(double t) {
       roll = c.roll;
       pitch = c.pitch;
       Blend(t, &thrust, &roll, &pitch);
-      if (TouchedDown(z)) {
+      if (TouchedDown(z, own.velocity.z())) {
         phase_ = FlightPhase::kLanded;
         phase_start_ = t;
         thrust = roll = pitch = 0.0;
@@ -710,7 +786,7 @@ ControlOutput VehicleController::Step(double t) {
 
   if (phase_ == FlightPhase::kNmpc) {
     RecoveryDecision d;
-    if (EstimateUsable()) {
+    if (EstimateUsable(t)) {
       NmpcInput in;
       in.t = t;
       in.position = own.position;
@@ -767,20 +843,23 @@ ControlOutput VehicleController::Step(double t) {
     const bool descending = t - phase_start_ >= config_.safety.recovery.failsafe_hold_time;
     const double vz_ref = descending ? -fs : 0.0;
     const double hover = config_.params.mass * kGravity;
-    if (std::isfinite(z)) {
-      if (!std::isfinite(z_ref_)) z_ref_ = z;
+    const double zf = FailsafeHeight(t);
+    const bool raw = RawHeightFresh(t);
+    const double vz_meas = raw && std::isfinite(raw_vz_) ? raw_vz_ : own.velocity.z();
+    if (std::isfinite(zf)) {
+      if (!std::isfinite(z_ref_)) z_ref_ = zf;
       if (descending) z_ref_ = std::max(ground - 0.3, z_ref_ - fs * dt);
       // Level: no horizontal damping (the horizontal estimate may be what failed).
-      const double vz = std::isfinite(own.velocity.z()) ? own.velocity.z() : 0.0;
-      const PidCommand c = pid_.Update(dt, z_ref_, vz_ref, z, Vec3(0.0, 0.0, vz), Vec3::Zero());
+      const double vz = std::isfinite(vz_meas) ? vz_meas : 0.0;
+      const PidCommand c = pid_.Update(dt, z_ref_, vz_ref, zf, Vec3(0.0, 0.0, vz), Vec3::Zero());
       thrust = c.thrust;
-      if (TouchedDown(z)) {
+      if (TouchedDown(zf, vz)) {
         phase_ = FlightPhase::kLanded;
         phase_start_ = t;
         thrust = 0.0;
       }
-    } else if (std::isfinite(own.velocity.z())) {
-      thrust = hover + config_.params.mass * config_.pid.kd_z * (vz_ref - own.velocity.z());
+    } else if (std::isfinite(vz_meas) && !VerticallyInconsistent(t)) {
+      thrust = hover + config_.params.mass * config_.pid.kd_z * (vz_ref - vz_meas);
     } else {
       thrust = descending ? kFailsafeBlindThrustFactor * hover : hover;
     }

@@ -181,10 +181,16 @@ class VehicleController {
   ControlOutput Step(double t);
   double Height() const;
   void Blend(double t, double* thrust, double* roll, double* pitch) const;
-  bool EstimateUsable() const;
+  bool EstimateUsable(double t) const;
   void UpdateNeighbourPresence(double t);
   void EnterFailsafe(double t, RecoveryReason reason);
-  bool TouchedDown(double z) const;
+  bool PidEstimateLost(double t, double z, ControlOutput* out);
+  bool TouchedDown(double z, double vz) const;
+  void TrackMocapHeight(const Measurement& m);
+  bool RawHeightFresh(double t) const;
+  double FailsafeHeight(double t) const;
+  void CheckVerticalConsistency(double t);
+  bool VerticallyInconsistent(double t) const;
 
   ControllerConfig config_;
   estimation::VehicleEkf ekf_;
@@ -209,6 +215,10 @@ class VehicleController {
   long fallbacks_ = 0;
   ControllerEstimates estimates_;
   RecoveryLadder ladder_;
+  // Raw motion-capture height [m], its stamp [s] and filtered rate [m/s]; start of a
+  // disagreement between it and the EKF's vertical speed [s].
+  double raw_z_ = kNaN, raw_z_stamp_ = kNaN, raw_vz_ = kNaN;
+  double vertical_mismatch_since_ = kNaN;
   RecoveryReason failsafe_reason_ = RecoveryReason::kNone;
   bool nmpc_started_ = false;
   bool reinit_pending_ = false;
