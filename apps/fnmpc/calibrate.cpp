@@ -11,22 +11,15 @@
 #include <vector>
 
 #include "apps/fnmpc/commands.hpp"
+#include "apps/fnmpc/sysid_report.hpp"
 #include "fnmpc/config/csv_reader.hpp"
 #include "fnmpc/config/vehicle_yaml.hpp"
+#include "fnmpc/sysid/angles.hpp"
 #include "fnmpc/sysid/calibration.hpp"
 
 namespace fnmpc::app {
 
 namespace fs = std::filesystem;
-
-// Defined in sysid.cpp.
-namespace sysid_report {
-void WriteCsv(const fs::path& path, const std::vector<std::string>& header,
-              const std::vector<std::vector<double>>& columns);
-fs::path ReportDir(const std::string& out);
-void Finalize(const fs::path& tmp, const fs::path& final_dir, bool plots);
-fs::path MakeTemp(const fs::path& final_dir);
-}  // namespace sysid_report
 
 namespace {
 
@@ -54,12 +47,8 @@ int RunCalibrate(const CalibrateOptions& o) {
     for (int k = 0; k < 4; ++k) u[k] = csv.Column(cols[10 + k])[i];
     // Yaw continuous along the log (the model has no wrapping).
     if (i > 0) {
-      const double prev = log.state.back()[8];
-      while (x[8] - prev > M_PI) x[8] -= 2.0 * M_PI;
-      while (x[8] - prev < -M_PI) x[8] += 2.0 * M_PI;
-      const double prev_cmd = log.command.back()[3];
-      while (u[3] - prev_cmd > M_PI) u[3] -= 2.0 * M_PI;
-      while (u[3] - prev_cmd < -M_PI) u[3] += 2.0 * M_PI;
+      x[8] = sysid::UnwrapNear(x[8], log.state.back()[8]);
+      u[3] = sysid::UnwrapNear(u[3], log.command.back()[3]);
     }
     log.state.push_back(x);
     log.command.push_back(u);

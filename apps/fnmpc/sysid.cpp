@@ -5,6 +5,7 @@
 #include <fmt/core.h>
 #include <fmt/os.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -12,13 +13,16 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include "apps/fnmpc/commands.hpp"
+#include "apps/fnmpc/sysid_report.hpp"
 #include "fnmpc/config/campaign_yaml.hpp"
 #include "fnmpc/config/csv_reader.hpp"
 #include "fnmpc/config/vehicle_yaml.hpp"
+#include "fnmpc/sysid/angles.hpp"
 #include "fnmpc/sysid/attitude_fit.hpp"
 #include "fnmpc/sysid/calibration.hpp"
 #include "fnmpc/sysid/pendulum.hpp"
@@ -31,61 +35,10 @@ namespace fnmpc::app {
 
 namespace fs = std::filesystem;
 
-/// Report helpers shared with calibrate.cpp (declared there).
-namespace sysid_report {
-
-/// Writes a CSV file with a header and rows of numbers (full precision).
-void WriteCsv(const fs::path& path, const std::vector<std::string>& header,
-              const std::vector<std::vector<double>>& columns) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(path.string() + ": cannot write");
-  for (std::size_t c = 0; c < header.size(); ++c) out << (c ? "," : "") << header[c];
-  out << "\n";
-  const std::size_t rows = columns.empty() ? 0 : columns[0].size();
-  for (std::size_t r = 0; r < rows; ++r) {
-    for (std::size_t c = 0; c < columns.size(); ++c) {
-      out << (c ? "," : "") << fmt::format("{:.10g}", columns[c][r]);
-    }
-    out << "\n";
-  }
-  if (!out) throw std::runtime_error(path.string() + ": write failed");
-}
-
-/// The report directory of an output file: <out>.report.
-fs::path ReportDir(const std::string& out) { return fs::path(out + ".report"); }
-
-/// Runs tools/sysid_report.py on `tmp` (warning only on failure), then replaces `final_dir`
-/// with `tmp` atomically (rename).
-void Finalize(const fs::path& tmp, const fs::path& final_dir, bool plots) {
-  if (plots) {
-    const std::string script = std::string(FNMPC_SOURCE_DIR) + "/tools/sysid_report.py";
-    const std::string cmd =
-        "MPLBACKEND=Agg /usr/bin/python3 '" + script + "' '" + tmp.string() + "'";
-    if (std::system(cmd.c_str()) != 0) {
-      fmt::print(stderr, "fnmpc: warning: the report script failed ({}); CSVs are in {}\n", cmd,
-                 final_dir.string());
-    }
-  }
-  std::error_code ec;
-  fs::remove_all(final_dir, ec);
-  fs::rename(tmp, final_dir);
-}
-
-/// A fresh temporary directory next to `final_dir`.
-fs::path MakeTemp(const fs::path& final_dir) {
-  fs::path tmp = final_dir;
-  tmp += ".tmp";
-  std::error_code ec;
-  fs::remove_all(tmp, ec);
-  fs::create_directories(tmp);
-  return tmp;
-}
-
-}  // namespace sysid_report
-
 namespace {
 
 using config::CsvTable;
+namespace sid = fnmpc::sysid;
 
 struct SysidOptions {
   std::string campaign;
@@ -94,126 +47,131 @@ struct SysidOptions {
   double motor_time_constant = 0.02;
   double autopilot_rate_hz = 250.0;
   double physics_dt = 0.001;
-  bool lag_only = false;
+  std::string tau_convention = "auto";
   std::string synth_dir;
   unsigned seed = 7;
 };
 
-std::vector<double> Unwrapped(std::vector<double> a) {
-  for (std::size_t i = 1; i < a.size(); ++i) {
-    while (a[i] - a[i - 1] > M_PI) a[i] -= 2.0 * M_PI;
-    while (a[i] - a[i - 1] < -M_PI) a[i] += 2.0 * M_PI;
+// The vehicle parameters each stage identifies (the keys of the vehicle file it fills).
+const std::vector<std::string> kVehicleKeys{
+    "mass",     "inertia",     "thrust_constant", "torque_constant", "throttle_polynomial",
+    "attitude", "attitude_pd", "arm_length"};
+
+// Keeps the top-level blocks `keep` of a YAML text written by SaveVehicleFile (a block is a
+// line starting at column 1 and the indented lines after it).
+std::string KeepTopLevelKeys(const std::string& text, const std::vector<std::string>& keep) {
+  std::istringstream in(text);
+  std::string line, out;
+  bool on = false;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line[0] != ' ' && line[0] != '#') {
+      const std::string key = line.substr(0, line.find(':'));
+      on = std::find(keep.begin(), keep.end(), key) != keep.end();
+    }
+    if (on) out += line + "\n";
   }
-  return a;
+  return out;
+}
+
+sid::AttitudeLoopSettings LoopSettings(const SysidOptions& o) {
+  sid::AttitudeLoopSettings ls;
+  ls.motor_time_constant = o.motor_time_constant;
+  ls.autopilot_rate_hz = o.autopilot_rate_hz;
+  ls.physics_dt = o.physics_dt;
+  return ls;
+}
+
+// Runs `body` as a stage: an exception marks the stage failed with its message.
+template <class F>
+void RunStage(sysid_report::Stage* stage, F&& body) {
+  try {
+    body();
+    stage->ok = true;
+  } catch (const std::exception& e) {
+    stage->ok = false;
+    stage->reason = e.what();
+    fmt::print(stderr, "fnmpc: error: sysid stage '{}' failed: {}\n", stage->name, e.what());
+  }
 }
 
 int RunSysid(const SysidOptions& o) {
-  namespace sid = fnmpc::sysid;
   if (o.output.empty()) throw std::invalid_argument("sysid: -o OUTPUT is required");
+  // The campaign file itself is required: every stage needs it.
   const config::Campaign c = config::LoadCampaignFile(o.campaign);
-
-  // Read every file first, so that a bad file fails before anything is written.
-  const CsvTable bench_csv =
-      config::ReadCsv(c.propeller_bench, {"throttle", "voltage", "rpm", "thrust", "torque"});
-  const std::array<std::string, 3> pend_files{c.pendulum_x, c.pendulum_y, c.pendulum_z};
-  std::vector<CsvTable> pend_csv;
-  for (const auto& f : pend_files) pend_csv.push_back(config::ReadCsv(f, {"t", "angle"}, "t"));
-  const CsvTable steps_csv = config::ReadCsv(
-      c.attitude_steps, {"t", "roll_ref", "pitch_ref", "yaw_ref", "roll", "pitch", "yaw"}, "t");
-
-  // Propulsion.
-  sid::BenchData bench{bench_csv.Column("throttle"), bench_csv.Column("voltage"),
-                       bench_csv.Column("rpm"), bench_csv.Column("thrust"),
-                       bench_csv.Column("torque")};
-  const sid::PropulsionFit prop = sid::FitPropulsion(bench);
-
-  // Inertia.
-  std::array<sid::PendulumFit, 3> pend;
-  model::VehicleParams v;
-  for (int a = 0; a < 3; ++a) {
-    pend[a] = sid::FitPendulum(pend_csv[a].Column("t"), pend_csv[a].Column("angle"));
-    v.inertia[a] =
-        sid::BifilarInertia(c.mass, c.wire_separation, c.wire_length, pend[a].natural_period);
-  }
-  v.mass = c.mass;
-  v.arm_length = c.arm_length;
-  v.thrust_constant = prop.thrust_constant;
-  v.torque_constant = prop.torque_constant;
-  v.throttle = prop.throttle;
-
-  // Attitude loop: first-order model, then the lumped PD gains of the simulator.
-  const std::array<std::string, 3> axes{"roll", "pitch", "yaw"};
-  const std::vector<double>& t = steps_csv.Column("t");
-  std::array<sid::FirstOrderFit, 3> fo;
-  std::array<sid::PdFit, 3> pd;
-  std::array<std::vector<double>, 3> refs, angles;
-  for (int a = 0; a < 3; ++a) {
-    refs[a] = steps_csv.Column(axes[a] + "_ref");
-    angles[a] = steps_csv.Column(axes[a]);
-    if (a == 2) {
-      refs[a] = Unwrapped(refs[a]);
-      angles[a] = Unwrapped(angles[a]);
-    }
-    fo[a] = sid::FitFirstOrder(t, refs[a], angles[a]);
-    sid::AttitudeLoopSettings ls;
-    ls.motor_time_constant = o.motor_time_constant;
-    ls.autopilot_rate_hz = o.autopilot_rate_hz;
-    ls.physics_dt = o.physics_dt;
-    if (a == 2) {
-      // Yaw authority of the reaction torques at hover (docs/simulator.md, mixer).
-      const double hover = c.mass * kGravity;
-      const double fmax = prop.throttle.Thrust(1.0, 16.0);
-      const double ratio = prop.torque_constant / prop.thrust_constant;
-      const double room = std::isfinite(fmax) ? std::min(hover, 4.0 * fmax - hover) : hover;
-      ls.max_angular_acceleration = ratio * room / v.inertia.z();
-    }
-    pd[a] = sid::FitPdGains(t, refs[a], angles[a], fo[a], ls);
-    v.attitude_time_constant[a] = o.lag_only ? fo[a].time_constant : fo[a].equivalent_time_constant;
-    v.attitude_gain[a] = fo[a].gain;
-    v.attitude_kp[a] = pd[a].kp;
-    v.attitude_kd[a] = pd[a].kd;
-  }
-  v.Validate();
-
-  // Report: CSV dumps + summary.json, plots and summary.md by tools/sysid_report.py.
   const fs::path final_dir = sysid_report::ReportDir(o.output);
   const fs::path dir = sysid_report::MakeTemp(final_dir);
-  {
+
+  model::VehicleParams v;
+  v.mass = c.mass;
+  v.arm_length = c.arm_length;
+  std::vector<std::string> have{"mass", "arm_length"};
+  nlohmann::json j;
+  j["kind"] = "sysid";
+  j["campaign"] = o.campaign;
+  j["name"] = c.name;
+  j["mass"] = v.mass;
+
+  // Stage 1: propulsion (thrust stand).
+  sysid_report::Stage prop_stage{"propulsion"};
+  sid::PropulsionFit prop;
+  RunStage(&prop_stage, [&] {
+    const CsvTable csv =
+        config::ReadCsv(c.propeller_bench, {"throttle", "voltage", "rpm", "thrust", "torque"});
+    const sid::BenchData bench{csv.Column("throttle"), csv.Column("voltage"), csv.Column("rpm"),
+                               csv.Column("thrust"), csv.Column("torque")};
+    prop = sid::FitPropulsion(bench);
     std::vector<double> fit_thr, fit_thrust, fit_torque;
+    double thrust_mean = 0.0, torque_mean = 0.0;
     for (std::size_t i = 0; i < bench.throttle.size(); ++i) {
       fit_thr.push_back(prop.throttle.Throttle(bench.thrust[i], bench.voltage[i]));
       fit_thrust.push_back(prop.thrust_constant * bench.rpm[i] * bench.rpm[i]);
       fit_torque.push_back(prop.torque_constant * bench.rpm[i] * bench.rpm[i]);
+      thrust_mean += std::abs(bench.thrust[i]) / static_cast<double>(bench.throttle.size());
+      torque_mean += std::abs(bench.torque[i]) / static_cast<double>(bench.throttle.size());
     }
     sysid_report::WriteCsv(dir / "bench.csv",
                            {"throttle", "voltage", "rpm", "thrust", "torque", "throttle_fit",
                             "thrust_fit", "torque_fit"},
                            {bench.throttle, bench.voltage, bench.rpm, bench.thrust, bench.torque,
                             fit_thr, fit_thrust, fit_torque});
-    for (int a = 0; a < 3; ++a) {
-      const auto& pt = pend_csv[a].Column("t");
-      std::vector<double> fit;
-      for (double ti : pt) fit.push_back(pend[a].Evaluate(ti));
-      sysid_report::WriteCsv(dir / fmt::format("pendulum_{}.csv", "xyz"[a]), {"t", "angle", "fit"},
-                             {pt, pend_csv[a].Column("angle"), fit});
-      std::vector<double> y1, y2;
-      sid::SimulateFirstOrder<double>(t, refs[a], fo[a].time_constant, fo[a].gain, fo[a].delay,
-                                      fo[a].initial, &y1);
-      sid::AttitudeLoopSettings ls;
-      ls.motor_time_constant = o.motor_time_constant;
-      ls.autopilot_rate_hz = o.autopilot_rate_hz;
-      ls.physics_dt = o.physics_dt;
-      sid::SimulateAttitudeLoop<double>(t, refs[a], fo[a].gain, pd[a].kp, pd[a].kd, fo[a].initial,
-                                        ls, &y2);
-      sysid_report::WriteCsv(dir / fmt::format("attitude_{}.csv", axes[a]),
-                             {"t", "ref", "angle", "first_order", "pd_loop"},
-                             {t, refs[a], angles[a], y1, y2});
+    auto& s = prop_stage;
+    s.Param("thrust_constant", prop.thrust_constant, prop.thrust_constant_std_error, "N/rpm^2");
+    s.Param("torque_constant", prop.torque_constant, prop.torque_constant_std_error, "N m/rpm^2");
+    s.Param("throttle_polynomial (10 coefficients)", kNaN, -1.0, "-");
+    s.residuals = {{"thrust_rms", prop.thrust_rms},
+                   {"torque_rms", prop.torque_rms},
+                   {"throttle_rms", prop.throttle_rms},
+                   {"throttle_max_abs", prop.throttle_max_abs},
+                   {"throttle_max_abs_envelope", prop.throttle_max_abs_envelope},
+                   {"samples", prop.samples},
+                   {"polynomial_samples", prop.polynomial_samples}};
+    s.Check("T_k > 0", prop.thrust_constant, 0.0, false);
+    s.Check("T_q > 0", prop.torque_constant, 0.0, false);
+    s.Check("thrust rms / mean thrust", prop.thrust_rms / thrust_mean, 0.05);
+    s.Check("torque rms / mean torque", prop.torque_rms / torque_mean, 0.05);
+    s.Check("throttle polynomial rms", prop.throttle_rms, 0.01);
+    s.Check("throttle polynomial max |residual|, thrust >= 20 % of max",
+            prop.throttle_max_abs_envelope, 0.02);
+    // The map must be invertible over the bench's thrust and voltage range.
+    double fmin = kInf, fmax = 0.0, vmin = kInf, vmax = 0.0;
+    for (std::size_t i = 0; i < bench.thrust.size(); ++i) {
+      if (!(bench.thrust[i] > 0.0)) continue;
+      fmin = std::min(fmin, bench.thrust[i]);
+      fmax = std::max(fmax, bench.thrust[i]);
+      vmin = std::min(vmin, bench.voltage[i]);
+      vmax = std::max(vmax, bench.voltage[i]);
     }
-    nlohmann::json j;
-    j["kind"] = "sysid";
-    j["campaign"] = o.campaign;
-    j["name"] = c.name;
-    j["mass"] = v.mass;
+    double min_slope = kInf;
+    for (int a = 0; a <= 20; ++a) {
+      for (int b = 0; b <= 4; ++b) {
+        const double f = fmin + (fmax - fmin) * a / 20.0, volt = vmin + (vmax - vmin) * b / 4.0;
+        min_slope = std::min(min_slope, prop.throttle.DThrottleDThrust(f, volt));
+      }
+    }
+    s.Check("min d throttle / d thrust over the bench range", min_slope, 0.0, false);
+    v.thrust_constant = prop.thrust_constant;
+    v.torque_constant = prop.torque_constant;
+    v.throttle = prop.throttle;
     j["thrust_constant"] = prop.thrust_constant;
     j["torque_constant"] = prop.torque_constant;
     j["thrust_rms"] = prop.thrust_rms;
@@ -221,42 +179,277 @@ int RunSysid(const SysidOptions& o) {
     j["throttle_rms"] = prop.throttle_rms;
     j["throttle_max_abs"] = prop.throttle_max_abs;
     j["bench_samples"] = prop.samples;
-    for (int a = 0; a < 3; ++a) {
-      const std::string ax(1, "xyz"[a]);
-      j["pendulum"][ax] = {{"natural_period", pend[a].natural_period},
-                           {"damped_period", pend[a].damped_period},
-                           {"decay_rate", pend[a].decay_rate},
-                           {"rms", pend[a].rms},
-                           {"inertia", v.inertia[a]}};
-      j["attitude"][axes[a]] = {{"time_constant", fo[a].time_constant},
-                                {"delay", fo[a].delay},
-                                {"equivalent_time_constant", fo[a].equivalent_time_constant},
-                                {"gain", fo[a].gain},
-                                {"rms", fo[a].rms},
-                                {"kp", pd[a].kp},
-                                {"kd", pd[a].kd},
-                                {"pd_rms", pd[a].rms},
-                                {"pd_rms_to_first_order", pd[a].rms_to_first_order}};
-    }
-    std::ofstream(dir / "summary.json") << j.dump(2) << "\n";
-  }
-  sysid_report::Finalize(dir, final_dir, o.plots);
-  config::SaveVehicleFile(v, o.output);
+    have.insert(have.end(), {"thrust_constant", "torque_constant", "throttle_polynomial"});
+  });
 
-  fmt::print("{}: identified from {}\n", o.output, o.campaign);
-  fmt::print("  mass {:.4f} kg, inertia [{:.5f}, {:.5f}, {:.5f}] kg m^2\n", v.mass, v.inertia.x(),
-             v.inertia.y(), v.inertia.z());
-  fmt::print("  T_k {:.4e} N/rpm^2, T_q {:.4e} N m/rpm^2, throttle rms {:.4f} (max {:.4f})\n",
-             v.thrust_constant, v.torque_constant, prop.throttle_rms, prop.throttle_max_abs);
-  for (int a = 0; a < 3; ++a) {
-    fmt::print(
-        "  {:<5} tau {:.4f} s (first order {:.4f} s + delay {:.4f} s), k {:.4f}, "
-        "K_p {:.1f} 1/s^2, K_d {:.2f} 1/s\n",
-        axes[a], fo[a].equivalent_time_constant, fo[a].time_constant, fo[a].delay, fo[a].gain,
-        pd[a].kp, pd[a].kd);
+  // Stage 2: inertia (bifilar pendulum).
+  sysid_report::Stage inertia_stage{"inertia"};
+  RunStage(&inertia_stage, [&] {
+    const std::array<std::string, 3> files{c.pendulum_x, c.pendulum_y, c.pendulum_z};
+    auto& s = inertia_stage;
+    for (int a = 0; a < 3; ++a) {
+      const CsvTable csv = config::ReadCsv(files[a], {"t", "angle"}, "t");
+      const auto& pt = csv.Column("t");
+      const sid::PendulumFit pend = sid::FitPendulum(pt, csv.Column("angle"));
+      v.inertia[a] =
+          sid::BifilarInertia(c.mass, c.wire_separation, c.wire_length, pend.natural_period);
+      std::vector<double> fit;
+      for (double ti : pt) fit.push_back(pend.Evaluate(ti));
+      const std::string ax(1, "xyz"[a]);
+      sysid_report::WriteCsv(dir / ("pendulum_" + ax + ".csv"), {"t", "angle", "fit"},
+                             {pt, csv.Column("angle"), fit});
+      // I ~ T^2: relative standard error of I = 2 x that of T (the mass and the wire
+      // geometry are taken as exact).
+      const double se = 2.0 * v.inertia[a] * pend.natural_period_std_error / pend.natural_period;
+      s.Param("inertia " + ax, v.inertia[a], se, "kg m^2");
+      s.Param("natural period " + ax, pend.natural_period, pend.natural_period_std_error, "s");
+      s.residuals["rms_" + ax] = pend.rms;
+      s.residuals["noise_sigma_" + ax] = pend.noise_sigma;
+      s.Check("fit rms / amplitude " + ax, pend.rms / std::abs(pend.amplitude), 0.2);
+      s.Check("relative std error of I " + ax, se / v.inertia[a], 0.01);
+      s.Check("decay rate " + ax + " [1/s] >= 0", pend.decay_rate, 0.0, false);
+      j["pendulum"][ax] = {{"natural_period", pend.natural_period},
+                           {"damped_period", pend.damped_period},
+                           {"decay_rate", pend.decay_rate},
+                           {"rms", pend.rms},
+                           {"inertia", v.inertia[a]}};
+    }
+    // Principal moments of a rigid body satisfy the triangle inequalities.
+    const auto& I = v.inertia;
+    s.CheckTrue("triangle inequalities I_x + I_y >= I_z etc.",
+                I.x() + I.y() >= I.z() && I.y() + I.z() >= I.x() && I.z() + I.x() >= I.y(),
+                fmt::format("[{:.5g}, {:.5g}, {:.5g}]", I.x(), I.y(), I.z()));
+    have.push_back("inertia");
+  });
+
+  // Stages 3 and 4: attitude model (first order) and autopilot PD gains, per axis.
+  sysid_report::Stage att_stage{"attitude model"};
+  sysid_report::Stage pd_stage{"PD gains"};
+  const std::array<std::string, 3> axes{"roll", "pitch", "yaw"};
+  std::array<sid::FirstOrderFit, 3> fo;
+  std::array<std::vector<double>, 3> refs, angles;
+  std::vector<double> t;
+  RunStage(&att_stage, [&] {
+    const CsvTable csv = config::ReadCsv(
+        c.attitude_steps, {"t", "roll_ref", "pitch_ref", "yaw_ref", "roll", "pitch", "yaw"}, "t");
+    t = csv.Column("t");
+    auto& s = att_stage;
+    for (int a = 0; a < 3; ++a) {
+      refs[a] = csv.Column(axes[a] + "_ref");
+      angles[a] = csv.Column(axes[a]);
+      if (a == 2) {
+        refs[a] = sid::UnwrapAngles(refs[a]);
+        angles[a] = sid::UnwrapAngles(angles[a]);
+      }
+      try {
+        fo[a] = sid::FitFirstOrder(t, refs[a], angles[a]);
+      } catch (const std::exception& e) {
+        throw std::invalid_argument(axes[a] + ": " + e.what());
+      }
+      const auto& f = fo[a];
+      s.Param(axes[a] + " gain", f.gain, f.std_error[1], "-");
+      s.Param(axes[a] + " lag tau (without delay)", f.time_constant, f.std_error[0], "s");
+      s.Param(axes[a] + " delay", f.delay, f.std_error[2], "s");
+      s.residuals["rms_" + axes[a]] = f.rms;
+      s.residuals["noise_sigma_" + axes[a]] = f.noise_sigma;
+      s.residuals["r_squared_" + axes[a]] = f.r_squared;
+      s.Check(axes[a] + " R^2 of the step response", f.r_squared, 0.9, false);
+      s.Check(axes[a] + " gain within [0.5, 2]", std::abs(f.gain - 1.25), 0.75);
+      s.CheckTrue(axes[a] + " delay inside its range", !f.delay_at_bound,
+                  fmt::format("{:.4f} s", f.delay));
+      v.attitude_gain[a] = f.gain;
+      j["attitude"][axes[a]] = {{"time_constant", f.time_constant},
+                                {"delay", f.delay},
+                                {"equivalent_time_constant", f.equivalent_time_constant},
+                                {"gain", f.gain},
+                                {"rms", f.rms}};
+    }
+    have.push_back("attitude");
+  });
+  std::array<sid::PdFit, 3> pd;
+  RunStage(&pd_stage, [&] {
+    if (!att_stage.ok) {
+      throw std::invalid_argument("needs the attitude model (stage 'attitude model' failed)");
+    }
+    auto& s = pd_stage;
+    for (int a = 0; a < 3; ++a) {
+      sid::AttitudeLoopSettings ls = LoopSettings(o);
+      if (a == 2 && prop_stage.ok && inertia_stage.ok) {
+        // Yaw authority of the reaction torques at hover (docs/simulator.md, mixer).
+        const double hover = c.mass * kGravity;
+        const double fmax = prop.throttle.Thrust(1.0, 16.0);
+        const double ratio = prop.torque_constant / prop.thrust_constant;
+        const double room = std::isfinite(fmax) ? std::min(hover, 4.0 * fmax - hover) : hover;
+        ls.max_angular_acceleration = ratio * room / v.inertia.z();
+      }
+      try {
+        pd[a] = sid::FitPdGains(t, refs[a], angles[a], fo[a], ls);
+      } catch (const std::exception& e) {
+        if (!std::isfinite(ls.max_angular_acceleration)) {
+          throw std::invalid_argument(axes[a] + ": " + e.what());
+        }
+        pd[a].rms = kInf;
+      }
+      if (std::isfinite(ls.max_angular_acceleration)) {
+        // The authority computed from the identified propulsion is this simulator's
+        // mixer model; if the measured response is faster than it allows (the clamped
+        // loop fits clearly worse than an unclamped one), the data contradict it: the
+        // unclamped fit is kept and the check fails.
+        sid::AttitudeLoopSettings free = ls;
+        free.max_angular_acceleration = kInf;
+        sid::PdFit unclamped;
+        try {
+          unclamped = sid::FitPdGains(t, refs[a], angles[a], fo[a], free);
+        } catch (const std::exception& e) {
+          if (!std::isfinite(pd[a].rms)) throw std::invalid_argument(axes[a] + ": " + e.what());
+          unclamped.rms = kInf;
+        }
+        const bool consistent = pd[a].rms <= 1.5 * unclamped.rms;
+        s.CheckTrue(axes[a] + " response within the reaction-torque authority", consistent,
+                    fmt::format("limit {:.3g} rad/s^2: rms {:.3g} clamped vs {:.3g} free",
+                                ls.max_angular_acceleration, pd[a].rms, unclamped.rms));
+        if (!consistent) pd[a] = unclamped;
+      }
+      const auto& p = pd[a];
+      s.Param(axes[a] + " K_p", p.kp, p.kp_std_error, "1/s^2");
+      s.Param(axes[a] + " K_d", p.kd, p.kd_std_error, "1/s");
+      s.Param(axes[a] + " transport delay", p.delay, -1.0, "s");
+      s.residuals["rms_" + axes[a]] = p.rms;
+      s.residuals["rms_to_first_order_" + axes[a]] = p.rms_to_first_order;
+      s.residuals["r_squared_" + axes[a]] = p.r_squared;
+      s.Check(axes[a] + " R^2 of the step response", p.r_squared, 0.9, false);
+      s.CheckTrue(axes[a] + " gains inside their bounds", !p.at_bound,
+                  fmt::format("K_p {:.4g}, K_d {:.4g}", p.kp, p.kd));
+      s.Check(axes[a] + " closed loop: K_d / K_p > motor lag [s]", p.kd / p.kp,
+              o.motor_time_constant, false);
+      v.attitude_kp[a] = p.kp;
+      v.attitude_kd[a] = p.kd;
+      j["attitude"][axes[a]]["kp"] = p.kp;
+      j["attitude"][axes[a]]["kd"] = p.kd;
+      j["attitude"][axes[a]]["pd_delay"] = p.delay;
+      j["attitude"][axes[a]]["pd_rms"] = p.rms;
+      j["attitude"][axes[a]]["pd_rms_to_first_order"] = p.rms_to_first_order;
+    }
+    have.push_back("attitude_pd");
+  });
+  if (att_stage.ok) {
+    // The vehicle's time constant is the lag of the first-order model without the
+    // transport delay (the NMPC model has no delay). Whether the first-order fit's delay d
+    // is a transport delay or the lag of fast closed-loop poles is decided by which model
+    // explains the data better: first order + dead time, or the autopilot's PD loop (motor
+    // lag, discrete PD) with its own transport delay d_pd. Dead time: tau = tau_fo; fast
+    // poles: tau = tau_fo + d - d_pd (mean residence time of the lag part).
+    auto& s = att_stage;
+    for (int a = 0; a < 3; ++a) {
+      const auto& f = fo[a];
+      std::string model;
+      double transport = 0.0, tau = 0.0, tau_se = 0.0;
+      if (o.tau_convention == "lag") {
+        model = "forced: lag only";
+        transport = f.delay;
+      } else if (o.tau_convention == "residence") {
+        model = "forced: lag + delay";
+        transport = 0.0;
+      } else if (!pd_stage.ok) {
+        model = "PD loop unavailable: lag + delay";
+        transport = 0.0;
+        s.CheckTrue(axes[a] + " transport delay determined", false,
+                    "the PD stage failed; tau includes the first-order delay");
+      } else if (f.rms <= pd[a].rms) {
+        model = "first order + transport delay fits better";
+        transport = f.delay;
+      } else {
+        model = "PD loop fits better: delay is fast dynamics";
+        transport = std::min(pd[a].delay, f.delay);
+      }
+      tau = f.equivalent_time_constant - transport;
+      tau_se = transport == f.delay ? f.std_error[0] : std::hypot(f.std_error[0], f.std_error[2]);
+      s.Param(axes[a] + " time constant", tau, tau_se, "s");
+      s.Param(axes[a] + " transport delay (not in the vehicle file)", transport, -1.0, "s");
+      s.residuals["delay_model_" + axes[a]] = model;
+      s.Check(axes[a] + " relative std error of tau", tau_se / tau, 0.05);
+      v.attitude_time_constant[a] = tau;
+      j["attitude"][axes[a]]["vehicle_time_constant"] = tau;
+      j["attitude"][axes[a]]["transport_delay"] = transport;
+      j["attitude"][axes[a]]["delay_model"] = model;
+    }
+    for (int a = 0; a < 3; ++a) {
+      std::vector<double> y1, y2(t.size(), kNaN);
+      sid::SimulateFirstOrder<double>(t, refs[a], fo[a].time_constant, fo[a].gain, fo[a].delay,
+                                      fo[a].initial, &y1);
+      if (pd_stage.ok) {
+        sid::AttitudeLoopSettings ls = LoopSettings(o);
+        ls.delay = pd[a].delay;
+        sid::SimulateAttitudeLoop<double>(t, refs[a], fo[a].gain, pd[a].kp, pd[a].kd, fo[a].initial,
+                                          ls, &y2);
+      }
+      sysid_report::WriteCsv(dir / fmt::format("attitude_{}.csv", axes[a]),
+                             {"t", "ref", "angle", "first_order", "pd_loop"},
+                             {t, refs[a], angles[a], y1, y2});
+    }
   }
+
+  const std::vector<sysid_report::Stage> stages{prop_stage, inertia_stage, att_stage, pd_stage};
+  bool complete = true, sane = true;
+  for (const auto& s : stages) {
+    j["stages"].push_back(s.Json());
+    complete = complete && s.ok;
+    sane = sane && s.Passed();
+  }
+  j["complete"] = complete;
+  std::ofstream(dir / "summary.json") << j.dump(2) << "\n";
+  sysid_report::Finalize(dir, final_dir, o.plots);
+
+  if (complete) {
+    v.Validate();
+    config::SaveVehicleFile(v, o.output);
+  } else {
+    // Only what was identified: the file is incomplete on purpose (check-vehicle and the
+    // controller reject it), so nothing unidentified passes for a result.
+    const std::string tmp = o.output + ".partial.tmp";
+    config::SaveVehicleFile(v, tmp);
+    std::ifstream in(tmp);
+    std::stringstream text;
+    text << in.rdbuf();
+    in.close();
+    fs::remove(tmp);
+    std::string failed;
+    for (const auto& s : stages) {
+      if (!s.ok) failed += (failed.empty() ? "" : ", ") + s.name;
+    }
+    std::ofstream out(o.output + ".tmp");
+    out << "# INCOMPLETE vehicle file: stage(s) failed: " << failed << " (see "
+        << final_dir.filename().string() << "/summary.md)\n"
+        << KeepTopLevelKeys(text.str(), have);
+    out.close();
+    if (!out) throw std::runtime_error(o.output + ": write failed");
+    fs::rename(o.output + ".tmp", o.output);
+  }
+
+  fmt::print("{}: identified from {}{}\n", o.output, o.campaign,
+             complete ? "" : " (INCOMPLETE: see the failed stages)");
+  fmt::print("  mass {:.4f} kg\n", v.mass);
+  if (inertia_stage.ok) {
+    fmt::print("  inertia [{:.5f}, {:.5f}, {:.5f}] kg m^2\n", v.inertia.x(), v.inertia.y(),
+               v.inertia.z());
+  }
+  if (prop_stage.ok) {
+    fmt::print("  T_k {:.4e} N/rpm^2, T_q {:.4e} N m/rpm^2, throttle rms {:.4f} (max {:.4f})\n",
+               v.thrust_constant, v.torque_constant, prop.throttle_rms, prop.throttle_max_abs);
+  }
+  for (int a = 0; a < 3 && att_stage.ok; ++a) {
+    fmt::print("  {:<5} tau {:.4f} s (first order {:.4f} s + delay {:.4f} s), k {:.4f}", axes[a],
+               v.attitude_time_constant[a], fo[a].time_constant, fo[a].delay, fo[a].gain);
+    if (pd_stage.ok) {
+      fmt::print(", K_p {:.1f} 1/s^2, K_d {:.2f} 1/s, delay {:.3f} s", pd[a].kp, pd[a].kd,
+                 pd[a].delay);
+    }
+    fmt::print("\n");
+  }
+  sysid_report::PrintStages(stages);
   fmt::print("  report: {}\n", final_dir.string());
-  return 0;
+  if (!complete) return 2;
+  return sane ? 0 : 3;
 }
 
 #if defined(FNMPC_HAVE_SIM)
@@ -457,9 +650,13 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
                   "simulator motor lag for the PD fit [s]");
   sub->add_option("--autopilot-rate", o->autopilot_rate_hz, "simulator autopilot rate [Hz]");
   sub->add_option("--physics-dt", o->physics_dt, "simulator physics step [s]");
-  sub->add_flag("--lag-only", o->lag_only,
-                "write the first-order lag tau without the fitted delay (when the delay is a "
-                "logging artefact); default: tau + delay");
+  sub->add_option("--tau", o->tau_convention,
+                  "attitude time constant: auto (the delay is a transport delay when first "
+                  "order + dead time fits better than the PD loop, docs/sysid.md), lag (tau "
+                  "without the fitted delay) or residence (tau + delay)")
+      ->check(CLI::IsMember({"auto", "lag", "residence"}));
+  sub->add_flag_callback(
+      "--lag-only", [o] { o->tau_convention = "lag"; }, "same as --tau lag");
 #if defined(FNMPC_HAVE_SIM)
   CLI::App* synth =
       sub->add_subcommand("synth", "Write a synthetic campaign made with the simulator");

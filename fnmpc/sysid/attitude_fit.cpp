@@ -3,6 +3,7 @@
 
 #include <ceres/ceres.h>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -64,7 +65,7 @@ void SimulateAttitudeLoop(const std::vector<double>& t, const std::vector<double
   (*y)[0] = theta;
   std::size_t i = 1;
   for (long step = 0; i < n; ++step) {
-    while (j + 1 < n && t[j + 1] <= s + 1e-12) ++j;
+    while (j + 1 < n && t[j + 1] <= s - st.delay + 1e-12) ++j;
     if (step % every == 0) {
       accel_cmd = kp * (gain * ref[j] - theta) - kd * omega;
       if (accel_cmd > T(amax)) accel_cmd = T(amax);
@@ -121,6 +122,7 @@ struct FirstOrderSim {
   }
 };
 
+// The gains in log coordinates: p = (ln K_p, ln K_d).
 struct LoopSim {
   const std::vector<double>* t;
   const std::vector<double>* ref;
@@ -129,9 +131,25 @@ struct LoopSim {
   AttitudeLoopSettings settings;
   template <class T>
   void operator()(const T* p, std::vector<T>* y) const {
-    SimulateAttitudeLoop<T>(*t, *ref, gain, p[0], p[1], y0, settings, y);
+    using std::exp;
+    SimulateAttitudeLoop<T>(*t, *ref, gain, exp(p[0]), exp(p[1]), y0, settings, y);
   }
 };
+
+double SumSquares(const std::vector<double>& y, const std::vector<double>& m) {
+  double ss = 0.0;
+  for (std::size_t i = 0; i < m.size(); ++i) ss += (y[i] - m[i]) * (y[i] - m[i]);
+  return ss;
+}
+
+double RSquared(double rms, const std::vector<double>& m) {
+  double mean = 0.0;
+  for (double v : m) mean += v;
+  mean /= static_cast<double>(m.size());
+  double tot = 0.0;
+  for (double v : m) tot += (v - mean) * (v - mean);
+  return tot > 0.0 ? 1.0 - rms * rms * static_cast<double>(m.size()) / tot : 0.0;
+}
 
 }  // namespace
 
@@ -188,6 +206,9 @@ FirstOrderFit FitFirstOrder(const std::vector<double>& t, const std::vector<doub
   fit.initial = r.p[3];
   fit.equivalent_time_constant = fit.time_constant + fit.delay;
   fit.rms = r.rms;
+  fit.std_error = r.std_error;
+  fit.delay_at_bound = st.fit_delay && r.at_bound[2] && fit.delay > 0.5 * st.max_delay;
+  fit.r_squared = RSquared(r.rms, angle);
   return fit;
 }
 
@@ -200,38 +221,102 @@ PdFit FitPdGains(const std::vector<double>& t, const std::vector<double>& ref,
         "[FitPdGains] physics_dt, autopilot_rate_hz and "
         "motor_time_constant must be > 0");
   }
-  const LoopSim sim{&t, &ref, fo.gain, fo.initial, st};
   const double tau = fo.equivalent_time_constant;
-  // Start on the valley K_d = tau K_p: the best K_p of a log grid.
-  double best_kp = 1.0 / (tau * tau), best_err = kInf;
+  if (!(tau > 0.0) || !std::isfinite(fo.gain) || !std::isfinite(fo.initial)) {
+    throw std::invalid_argument("[FitPdGains] the first-order fit is not usable (tau_eq " +
+                                std::to_string(tau) + " s)");
+  }
+  // A simulated angle further than this from the data is a diverged loop: rejected.
+  double span = 0.0;
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    span = std::max({span, std::abs(angle[i] - fo.initial), std::abs(fo.gain * ref[i])});
+  }
+  const double max_abs = std::abs(fo.initial) + 10.0 * span + 1e-3;
+  auto finite_error = [&](const std::vector<double>& y) {
+    for (double v : y) {
+      if (!std::isfinite(v) || std::abs(v) > max_abs) return kInf;
+    }
+    return SumSquares(y, angle);
+  };
+  // Gains: K_p in [kp_lo, 1e6] 1/s^2, K_d in [1e-3, 1e4] 1/s, fitted as logarithms.
+  const double kp_lo = 1e-2 / (tau * tau);
+  const std::array<double, 2> lo{std::log(kp_lo), std::log(1e-3)};
+  const std::array<double, 2> hi{std::log(1e6), std::log(1e4)};
+
+  // Start: grid over the delay (physics_dt steps, up to the first-order delay) and K_p,
+  // with K_d = (tau_eq - d) K_p.
+  const double h = st.physics_dt;
+  const int max_steps = static_cast<int>(std::floor(std::min(fo.delay, 0.8 * tau) / h + 1e-9));
+  const int stride = std::max(1, max_steps / 15);
+  double best_err = kInf, best_kp = 0.0, best_lag = tau;
+  int best_steps = 0;
   std::vector<double> y;
-  for (double kp = 1.0 / (tau * tau); kp < 1e5; kp *= 1.15) {
-    const double p[2] = {kp, tau * kp};
-    sim(p, &y);
-    double err = 0.0;
-    for (std::size_t i = 0; i < t.size(); ++i) err += (y[i] - angle[i]) * (y[i] - angle[i]);
-    if (std::isfinite(err) && err < best_err) {
-      best_err = err;
-      best_kp = kp;
+  for (int k = 0; k <= max_steps; k += stride) {
+    AttitudeLoopSettings sk = st;
+    sk.delay = k * h;
+    const double lag = tau - sk.delay;
+    const LoopSim sim{&t, &ref, fo.gain, fo.initial, sk};
+    for (double kp = 1.0 / (lag * lag); kp < 1e5; kp *= 1.15) {
+      const double p[2] = {std::log(kp), std::log(lag * kp)};
+      sim(p, &y);
+      const double err = finite_error(y);
+      if (err < best_err) {
+        best_err = err;
+        best_kp = kp;
+        best_lag = lag;
+        best_steps = k;
+      }
     }
   }
-  const std::array<double, 2> p0{best_kp, tau * best_kp};
-  const std::array<double, 2> lo{1e-3, 1e-4};
-  const std::array<double, 2> hi{1e6, 1e5};
-  const auto r0 = FitTrajectory<2>(sim, angle, p0, lo, hi, 0.0);
-  const auto r =
-      FitTrajectory<2>(sim, angle, r0.p, lo, hi, 3.0 * std::max(r0.rms, NoiseSigma(angle)));
-  if (!r.converged) throw std::invalid_argument("[FitPdGains] the fit did not converge");
+  if (!(best_err < kInf)) {
+    throw std::invalid_argument("[FitPdGains] no start point gives a bounded simulation");
+  }
+  // Ceres on (ln K_p, ln K_d) at a fixed delay; plain least squares, then a Huber loss at
+  // 3x that fit's RMS (as FitFirstOrder).
+  const double noise = NoiseSigma(angle);
+  auto fit_at = [&](int steps, const std::array<double, 2>& p0) {
+    AttitudeLoopSettings sk = st;
+    sk.delay = steps * h;
+    const LoopSim sim{&t, &ref, fo.gain, fo.initial, sk};
+    const auto r0 = FitTrajectory<2>(sim, angle, p0, lo, hi, 0.0, 100, max_abs);
+    if (!r0.converged) return r0;
+    return FitTrajectory<2>(sim, angle, r0.p, lo, hi, 3.0 * std::max(r0.rms, noise), 100, max_abs);
+  };
+  auto clamp_start = [&](std::array<double, 2> p) {
+    for (int k = 0; k < 2; ++k) p[k] = std::clamp(p[k], lo[k], hi[k]);
+    return p;
+  };
+  auto best = fit_at(best_steps, clamp_start({std::log(best_kp), std::log(best_lag * best_kp)}));
+  if (!best.converged) throw std::invalid_argument("[FitPdGains] the fit did not converge");
+  // Line search over the delay on the physics_dt grid, warm-started from the neighbour.
+  for (int dir : {-1, 1}) {
+    int steps = best_steps;
+    while (true) {
+      const int next = steps + dir;
+      if (next < 0 || next * h >= 0.9 * tau) break;
+      const auto r = fit_at(next, best.p);
+      if (!r.converged || !(r.rms < best.rms)) break;
+      best = r;
+      best_steps = next;
+      steps = next;
+    }
+  }
   PdFit fit;
-  fit.kp = r.p[0];
-  fit.kd = r.p[1];
-  fit.rms = r.rms;
+  fit.kp = std::exp(best.p[0]);
+  fit.kd = std::exp(best.p[1]);
+  fit.delay = best_steps * h;
+  // d K = K d(ln K): standard errors of the gains from those of their logarithms.
+  fit.kp_std_error = fit.kp * best.std_error[0];
+  fit.kd_std_error = fit.kd * best.std_error[1];
+  fit.at_bound = best.at_bound[0] || best.at_bound[1];
+  fit.rms = best.rms;
+  fit.r_squared = RSquared(best.rms, angle);
+  AttitudeLoopSettings sk = st;
+  sk.delay = fit.delay;
   std::vector<double> yf;
-  sim(r.p.data(), &y);
+  SimulateAttitudeLoop<double>(t, ref, fo.gain, fit.kp, fit.kd, fo.initial, sk, &y);
   SimulateFirstOrder<double>(t, ref, fo.time_constant, fo.gain, fo.delay, fo.initial, &yf);
-  double ss = 0.0;
-  for (std::size_t i = 0; i < t.size(); ++i) ss += (y[i] - yf[i]) * (y[i] - yf[i]);
-  fit.rms_to_first_order = std::sqrt(ss / static_cast<double>(t.size()));
+  fit.rms_to_first_order = std::sqrt(SumSquares(y, yf) / static_cast<double>(t.size()));
   return fit;
 }
 

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
+#include <array>
 #include <vector>
 
 #include "fnmpc/core/types.hpp"
@@ -19,6 +20,10 @@ struct FirstOrderFit {
   double equivalent_time_constant = 0.0;
   double rms = 0.0;          ///< RMS residual [rad]
   double noise_sigma = 0.0;  ///< robust noise estimate of the measured angle [rad]
+  /// Standard errors of time_constant, gain, delay, initial (Gauss-Newton covariance).
+  std::array<double, 4> std_error{};
+  bool delay_at_bound = false;  ///< the delay ended on a bound of its range
+  double r_squared = 0.0;       ///< 1 - SS_res / SS_tot of the measured angle
 };
 
 /// Settings of FitFirstOrder.
@@ -50,6 +55,7 @@ struct AttitudeLoopSettings {
   double autopilot_rate_hz = 250.0;        ///< [Hz]
   double motor_time_constant = 0.02;       ///< [s]
   double max_angular_acceleration = kInf;  ///< actuator limit [rad/s^2] (yaw: T_q/T_k m g / I_z)
+  double delay = 0.0;  ///< transport delay of the reference [s] (the loop sees r(t - delay))
 };
 
 /// Response of the light-weight loop at the sample times `t` from rest at y0 [rad].
@@ -60,18 +66,27 @@ void SimulateAttitudeLoop(const std::vector<double>& t, const std::vector<double
 
 /// Fitted lumped PD gains of one axis.
 struct PdFit {
-  double kp = 0.0;   ///< [1/s^2]
-  double kd = 0.0;   ///< [1/s]
-  double rms = 0.0;  ///< RMS residual against the measured angle [rad]
+  double kp = 0.0;            ///< [1/s^2]
+  double kd = 0.0;            ///< [1/s]
+  double delay = 0.0;         ///< transport delay of the reference [s] (on the physics_dt grid)
+  double kp_std_error = 0.0;  ///< standard error of kp (Gauss-Newton covariance) [1/s^2]
+  double kd_std_error = 0.0;  ///< standard error of kd [1/s]
+  bool at_bound = false;      ///< a gain ended on a bound of its range
+  double rms = 0.0;           ///< RMS residual against the measured angle [rad]
+  double r_squared = 0.0;     ///< 1 - SS_res / SS_tot of the measured angle
   /// RMS difference between the light-weight loop and the identified first-order
   /// response (with its delay) [rad].
   double rms_to_first_order = 0.0;
 };
 
-/// Fits K_p, K_d by simulating the light-weight loop (gain k and start from `first_order`)
-/// against the measured angle, Huber loss of 3 noise sigma. The start is the best point of
-/// a log grid over K_p with K_d = tau_eq K_p (same mean residence time as the identified
-/// first-order model), so the fit starts on the valley of responses that reproduce it.
+/// Fits K_p, K_d and a transport delay d of the reference by simulating the light-weight
+/// loop (gain k and start from `first_order`) against the measured angle. The start is the
+/// best point of a grid over d (0 to the first-order delay, physics_dt steps) and K_p (log
+/// grid) with K_d = (tau_eq - d) K_p, i.e. on the valley of responses with the identified
+/// mean residence time. The gains are fitted in log coordinates (positive, scaled), bounded,
+/// and a simulation that diverges is rejected, never handed to Ceres; d is refined by a
+/// line search on the physics_dt grid. Throws std::invalid_argument when no grid point
+/// gives a finite simulation or the fit fails.
 PdFit FitPdGains(const std::vector<double>& t, const std::vector<double>& ref,
                  const std::vector<double>& angle, const FirstOrderFit& first_order,
                  const AttitudeLoopSettings& settings);

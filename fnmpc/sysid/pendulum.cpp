@@ -125,6 +125,11 @@ PendulumFit FitPendulum(const std::vector<double>& t, const std::vector<double>&
   fit.phase = r.p[3];
   fit.offset = r.p[4];
   fit.rms = r.rms;
+  // T = 2 pi / sqrt(w^2 + l^2): first-order propagation of the standard errors of w, l.
+  const double w2 = r.p[2] * r.p[2] + r.p[1] * r.p[1];
+  const double dw = 2.0 * M_PI * r.p[2] / std::pow(w2, 1.5);
+  const double dl = 2.0 * M_PI * r.p[1] / std::pow(w2, 1.5);
+  fit.natural_period_std_error = std::hypot(dw * r.std_error[2], dl * r.std_error[1]);
   return fit;
 }
 

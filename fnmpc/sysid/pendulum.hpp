@@ -17,6 +17,7 @@ struct PendulumFit {
   double t0 = 0.0;              ///< first sample time [s]
   double rms = 0.0;             ///< RMS residual [rad]
   double noise_sigma = 0.0;     ///< robust noise estimate of the signal [rad]
+  double natural_period_std_error = 0.0;  ///< standard error of natural_period [s]
   int samples = 0;
 
   /// The fitted curve at time t [s].

@@ -2,6 +2,7 @@
 #include "fnmpc/sysid/propulsion.hpp"
 
 #include <Eigen/QR>
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -9,8 +10,10 @@
 namespace fnmpc::sysid {
 namespace {
 
-// Least squares y = a x through the origin; returns a and writes the RMS residual.
-double ThroughOrigin(const std::vector<double>& x, const std::vector<double>& y, double* rms) {
+// Least squares y = a x through the origin; returns a and writes the RMS residual and the
+// standard error of a, sqrt(s^2 / sum x^2) with s^2 = SS_res / (n - 1).
+double ThroughOrigin(const std::vector<double>& x, const std::vector<double>& y, double* rms,
+                     double* std_error) {
   double xx = 0.0, xy = 0.0;
   for (std::size_t i = 0; i < x.size(); ++i) {
     xx += x[i] * x[i];
@@ -21,6 +24,7 @@ double ThroughOrigin(const std::vector<double>& x, const std::vector<double>& y,
   double ss = 0.0;
   for (std::size_t i = 0; i < x.size(); ++i) ss += (y[i] - a * x[i]) * (y[i] - a * x[i]);
   *rms = std::sqrt(ss / static_cast<double>(x.size()));
+  *std_error = std::sqrt(ss / static_cast<double>(x.size() - 1) / xx);
   return a;
 }
 
@@ -39,8 +43,10 @@ PropulsionFit FitPropulsion(const BenchData& b) {
   fit.samples = static_cast<int>(n);
   std::vector<double> rpm2(n);
   for (std::size_t i = 0; i < n; ++i) rpm2[i] = b.rpm[i] * b.rpm[i];
-  fit.thrust_constant = ThroughOrigin(rpm2, b.thrust, &fit.thrust_rms);
-  fit.torque_constant = ThroughOrigin(rpm2, b.torque, &fit.torque_rms);
+  fit.thrust_constant =
+      ThroughOrigin(rpm2, b.thrust, &fit.thrust_rms, &fit.thrust_constant_std_error);
+  fit.torque_constant =
+      ThroughOrigin(rpm2, b.torque, &fit.torque_rms, &fit.torque_constant_std_error);
 
   // Polynomial: columns f^i V^j (i + j <= 3), each scaled to unit norm for conditioning.
   std::vector<std::size_t> rows;
@@ -77,12 +83,16 @@ PropulsionFit FitPropulsion(const BenchData& b) {
   for (int i = 0; i <= 3; ++i) {
     for (int j = 0; i + j <= 3; ++j) fit.throttle.c(i, j) = coef[col++];
   }
-  double ss = 0.0;
+  double ss = 0.0, fmax = 0.0;
+  for (std::size_t r : rows) fmax = std::max(fmax, b.thrust[r]);
   for (std::size_t r = 0; r < rows.size(); ++r) {
     const double e =
         fit.throttle.Throttle(b.thrust[rows[r]], b.voltage[rows[r]]) - b.throttle[rows[r]];
     ss += e * e;
     fit.throttle_max_abs = std::max(fit.throttle_max_abs, std::abs(e));
+    if (b.thrust[rows[r]] >= 0.2 * fmax) {
+      fit.throttle_max_abs_envelope = std::max(fit.throttle_max_abs_envelope, std::abs(e));
+    }
   }
   fit.throttle_rms = std::sqrt(ss / static_cast<double>(rows.size()));
   return fit;

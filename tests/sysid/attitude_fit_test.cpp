@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "fnmpc/sysid/attitude_fit.hpp"
+#include "fnmpc/sysid/angles.hpp"
 
 #include <gtest/gtest.h>
 
@@ -63,6 +64,24 @@ TEST(AttitudeFitTest, RejectsConstantReference) {
   for (int k = 0; k < 100; ++k) t[k] = 0.01 * k;
   EXPECT_THROW(FitFirstOrder(t, ref, y), std::invalid_argument);
   EXPECT_THROW(FitFirstOrder(t, ref, std::vector<double>(99)), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace fnmpc::sysid
+
+namespace fnmpc::sysid {
+namespace {
+
+TEST(UnwrapAnglesTest, ContinuousAcrossPiAndFiniteForAbsurdValues) {
+  // Given a yaw that crosses +-pi and one absurd sample (#21: the old loop never ended),
+  const std::vector<double> a{3.0, -3.0, -2.9, 1e17, 3.1};
+  // When unwrapped, Then the crossing is continuous and every value is finite.
+  const auto u = UnwrapAngles(a);
+  EXPECT_NEAR(u[1], -3.0 + 2.0 * M_PI, 1e-12);
+  EXPECT_NEAR(u[2], -2.9 + 2.0 * M_PI, 1e-12);
+  for (double x : u) EXPECT_TRUE(std::isfinite(x));
+  EXPECT_LE(std::abs(u[3] - u[2]), M_PI + 1e-9);
+  EXPECT_NEAR(UnwrapNear(-3.0, 3.0), -3.0 + 2.0 * M_PI, 1e-12);
 }
 
 }  // namespace

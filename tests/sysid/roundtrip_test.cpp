@@ -9,9 +9,11 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
 
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "fnmpc/config/vehicle_yaml.hpp"
@@ -21,8 +23,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
-int RunApp(const std::string& args, const fs::path& log) {
-  const std::string cmd = std::string(FNMPC_APP) + " " + args + " > '" + log.string() + "' 2>&1";
+// Runs fnmpc with `args` (shell words), output to `log`; `timeout_s` > 0 bounds its run time
+// (exit status 124 when it was killed).
+int RunApp(const std::string& args, const fs::path& log, int timeout_s = 0) {
+  const std::string prefix = timeout_s > 0 ? "timeout " + std::to_string(timeout_s) + " " : "";
+  const std::string cmd =
+      prefix + std::string(FNMPC_APP) + " " + args + " > '" + log.string() + "' 2>&1";
   const int rc = std::system(cmd.c_str());
   std::ifstream in(log);
   std::stringstream ss;
@@ -124,40 +130,63 @@ TEST_F(RoundTripTest, CalibrationRecoversInjectedBiases) {
   EXPECT_TRUE(fs::exists(dir_ / "out" / "calibrated.yaml.report" / "windows.csv"));
 }
 
-TEST_F(RoundTripTest, BadFileNamesPositionAndWritesNothing) {
+// Copies the synthetic campaign to `name` and replaces line `line_no` (1-based) of `file`
+// by `replacement` (the line's cells as `edit` returns them).
+fs::path CopyCampaign(const fs::path& from, const fs::path& to) {
+  fs::remove_all(to);
+  fs::copy(from, to);
+  return to;
+}
+
+void EditLine(const fs::path& file, int line_no,
+              const std::function<std::string(std::string)>& edit) {
+  std::ifstream in(file);
+  std::string line, text;
+  for (int n = 1; std::getline(in, line); ++n) text += (n == line_no ? edit(line) : line) + "\n";
+  in.close();
+  std::ofstream(file) << text;
+}
+
+// Replaces the cell `column` (0-based) of a CSV line.
+std::string SetCell(const std::string& line, int column, const std::string& value) {
+  std::vector<std::string> cells;
+  std::stringstream ss(line);
+  std::string c;
+  while (std::getline(ss, c, ',')) cells.push_back(c);
+  cells.at(static_cast<std::size_t>(column)) = value;
+  std::string out;
+  for (std::size_t i = 0; i < cells.size(); ++i) out += (i ? "," : "") + cells[i];
+  return out;
+}
+
+TEST_F(RoundTripTest, BadFileFailsItsStageNamingPositionAndKeepsTheOthers) {
   // Given the campaign with a non-numeric cell in bench.csv line 5, thrust column,
   ASSERT_EQ(synth_rc_, 0);
-  const fs::path bad = dir_ / "bad";
-  fs::remove_all(bad);
-  fs::copy(dir_ / "c", bad);
-  std::ifstream in(bad / "bench.csv");
-  std::string line, text;
-  for (int n = 1; std::getline(in, line); ++n) {
-    if (n == 5) line = "0.36,15.0,4000,oops,0.02";
-    text += line + "\n";
-  }
-  in.close();
-  std::ofstream(bad / "bench.csv") << text;
+  const fs::path bad = CopyCampaign(dir_ / "c", dir_ / "bad");
+  EditLine(bad / "bench.csv", 5, [](const std::string&) { return "0.36,15.0,4000,oops,0.02"; });
   // When identified,
   const fs::path out = bad / "vehicle.yaml";
   const int rc = RunApp(
       "sysid '" + (bad / "campaign.yaml").string() + "' -o '" + out.string() + "' --no-plots",
       bad / "sysid.log");
-  // Then it fails naming file, line and column, and writes no output.
-  EXPECT_NE(rc, 0);
+  // Then the propulsion stage fails naming file, line and column, the exit status says the
+  // vehicle file is incomplete, and what the other stages identified is written,
+  EXPECT_EQ(WEXITSTATUS(rc), 2);
   EXPECT_NE(Slurp(bad / "sysid.log").find("bench.csv:5:16: column 'thrust': not a number"),
             std::string::npos);
-  EXPECT_FALSE(fs::exists(out));
-  EXPECT_FALSE(fs::exists(bad / "vehicle.yaml.report"));
-  // And a calibration with a flight whose time goes backwards fails the same way.
-  std::ifstream fin(bad / "flight.csv");
-  text.clear();
-  for (int n = 1; std::getline(fin, line); ++n) {
-    if (n == 4) line = "0" + line.substr(line.find(','));
-    text += line + "\n";
-  }
-  fin.close();
-  std::ofstream(bad / "flight.csv") << text;
+  ASSERT_TRUE(fs::exists(out));
+  const std::string text = Slurp(out);
+  EXPECT_NE(text.find("INCOMPLETE"), std::string::npos);
+  EXPECT_EQ(text.find("thrust_constant"), std::string::npos);
+  EXPECT_NE(text.find("inertia:"), std::string::npos);
+  EXPECT_NE(text.find("attitude:"), std::string::npos);
+  EXPECT_NE(text.find("attitude_pd:"), std::string::npos);
+  EXPECT_THROW(config::LoadVehicleFile(out.string()), std::exception);
+  const std::string summary = Slurp(bad / "vehicle.yaml.report" / "summary.json");
+  EXPECT_NE(summary.find("\"complete\": false"), std::string::npos);
+  EXPECT_NE(summary.find("not a number"), std::string::npos);
+  // And a calibration with a flight whose time goes backwards fails naming the position.
+  EditLine(bad / "flight.csv", 4, [](const std::string& l) { return "0" + l.substr(l.find(',')); });
   const int rc2 = RunApp("calibrate '" + (dir_ / "out" / "vehicle.yaml").string() + "' '" +
                              (bad / "flight.csv").string() + "' -o '" +
                              (bad / "cal.yaml").string() + "' --no-plots",
@@ -165,6 +194,80 @@ TEST_F(RoundTripTest, BadFileNamesPositionAndWritesNothing) {
   EXPECT_NE(rc2, 0);
   EXPECT_NE(Slurp(bad / "calibrate.log").find("flight.csv:4:1: column 't'"), std::string::npos);
   EXPECT_FALSE(fs::exists(bad / "cal.yaml"));
+}
+
+TEST_F(RoundTripTest, MissingFilesFailOnlyTheirStages) {
+  // Given the campaign without its optional flight,
+  ASSERT_EQ(synth_rc_, 0);
+  const fs::path c = CopyCampaign(dir_ / "c", dir_ / "noflight");
+  fs::remove(c / "flight.csv");
+  const std::string campaign = Slurp(c / "campaign.yaml");
+  std::ofstream(c / "campaign.yaml")
+      << campaign.substr(0, campaign.find("flight: flight.csv")) << "\n";
+  // When identified, Then the vehicle file is complete,
+  const int rc = RunApp("sysid '" + (c / "campaign.yaml").string() + "' -o '" +
+                            (c / "vehicle.yaml").string() + "' --no-plots",
+                        c / "sysid.log");
+  EXPECT_TRUE(WEXITSTATUS(rc) == 0 || WEXITSTATUS(rc) == 3) << rc;
+  EXPECT_NO_THROW(config::LoadVehicleFile((c / "vehicle.yaml").string()));
+  // and without one pendulum run only the inertia stage fails.
+  fs::remove(c / "pendulum_z.csv");
+  const int rc2 = RunApp("sysid '" + (c / "campaign.yaml").string() + "' -o '" +
+                             (c / "partial.yaml").string() + "' --no-plots",
+                         c / "sysid2.log");
+  EXPECT_EQ(WEXITSTATUS(rc2), 2);
+  const std::string text = Slurp(c / "partial.yaml");
+  EXPECT_EQ(text.find("inertia:"), std::string::npos);
+  EXPECT_NE(text.find("thrust_constant:"), std::string::npos);
+  EXPECT_NE(text.find("attitude:"), std::string::npos);
+  EXPECT_NE(Slurp(c / "sysid2.log").find("pendulum_z.csv"), std::string::npos);
+}
+
+TEST_F(RoundTripTest, OutputPathReachesThePlotterWithoutAShell) {
+  // Given an output name with quotes and a command substitution (#21),
+  ASSERT_EQ(synth_rc_, 0);
+  const fs::path work = dir_ / "inject";
+  fs::remove_all(work);
+  fs::create_directories(work);
+  const std::string evil = "out'$(touch PWNED)'.yaml";
+  // When sysid and calibrate run with plots (the plotter is started) in that directory,
+  // (the name is passed to the test's own shell in double quotes, with $ escaped)
+  const std::string quoted = "\"out'\\$(touch PWNED)'.yaml\"";
+  const std::string cmd_sysid = "cd '" + work.string() + "' && " + std::string(FNMPC_APP) +
+                                " sysid '" + (dir_ / "c" / "campaign.yaml").string() + "' -o " +
+                                quoted + " > sysid.log 2>&1";
+  const int rc = std::system(cmd_sysid.c_str());
+  const std::string cmd_cal = "cd '" + work.string() + "' && " + std::string(FNMPC_APP) +
+                              " calibrate " + quoted + " '" + (dir_ / "c" / "flight.csv").string() +
+                              "' -o " + quoted + ".cal > calibrate.log 2>&1";
+  const int rc2 = std::system(cmd_cal.c_str());
+  // Then nothing was executed, and the files carry the name verbatim.
+  EXPECT_FALSE(fs::exists(work / "PWNED"));
+  EXPECT_TRUE(WEXITSTATUS(rc) == 0 || WEXITSTATUS(rc) == 3) << Slurp(work / "sysid.log");
+  EXPECT_EQ(WEXITSTATUS(rc2), 0) << Slurp(work / "calibrate.log");
+  EXPECT_TRUE(fs::exists(work / evil));
+  EXPECT_TRUE(fs::exists(work / (evil + ".report") / "summary.json"));
+  EXPECT_TRUE(fs::exists(work / (evil + ".cal")));
+}
+
+TEST_F(RoundTripTest, HugeYawDoesNotHang) {
+  // Given a yaw of 1e17 rad in one sample of the attitude steps and of the flight (#21),
+  ASSERT_EQ(synth_rc_, 0);
+  const fs::path c = CopyCampaign(dir_ / "c", dir_ / "hugeyaw");
+  EditLine(c / "attitude_steps.csv", 40,
+           [](const std::string& l) { return SetCell(l, 6, "1e17"); });
+  EditLine(c / "flight.csv", 40, [](const std::string& l) { return SetCell(l, 9, "-3e18"); });
+  // When identified and calibrated (each bounded by `timeout`, the old loop never ended),
+  const int rc = RunApp("sysid '" + (c / "campaign.yaml").string() + "' -o '" +
+                            (c / "vehicle.yaml").string() + "' --no-plots",
+                        c / "sysid.log", 120);
+  const int rc2 = RunApp("calibrate '" + (dir_ / "out" / "vehicle.yaml").string() + "' '" +
+                             (c / "flight.csv").string() + "' -o '" + (c / "cal.yaml").string() +
+                             "' --no-plots",
+                         c / "calibrate.log", 120);
+  // Then both finish (with a result or an error, not killed by the timeout).
+  EXPECT_NE(WEXITSTATUS(rc), 124);
+  EXPECT_NE(WEXITSTATUS(rc2), 124);
 }
 
 }  // namespace

@@ -1,0 +1,118 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "apps/fnmpc/sysid_report.hpp"
+
+#include <fmt/core.h>
+
+#include <cmath>
+#include <fstream>
+#include <stdexcept>
+
+#include "apps/fnmpc/process.hpp"
+
+namespace fnmpc::app::sysid_report {
+
+namespace {
+// JSON has no NaN/inf: non-finite numbers are written as null.
+nlohmann::json Num(double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(); }
+}  // namespace
+
+void Stage::Param(const std::string& param, double value, double std_error,
+                  const std::string& unit) {
+  params.push_back({{"name", param},
+                    {"value", Num(value)},
+                    {"std_error", std_error >= 0.0 ? Num(std_error) : nlohmann::json()},
+                    {"unit", unit}});
+}
+
+void Stage::Check(const std::string& check, double value, double limit, bool upper) {
+  const bool pass = std::isfinite(value) && (upper ? value <= limit : value >= limit);
+  checks.push_back({{"name", check},
+                    {"value", Num(value)},
+                    {"limit", fmt::format("{} {:.4g}", upper ? "<=" : ">=", limit)},
+                    {"pass", pass}});
+}
+
+void Stage::CheckTrue(const std::string& check, bool pass, const std::string& detail) {
+  checks.push_back({{"name", check}, {"value", detail}, {"limit", "true"}, {"pass", pass}});
+}
+
+bool Stage::Passed() const {
+  if (!ok) return false;
+  for (const auto& c : checks) {
+    if (!c["pass"].get<bool>()) return false;
+  }
+  return true;
+}
+
+nlohmann::json Stage::Json() const {
+  return {{"name", name},
+          {"ok", ok},
+          {"reason", reason},
+          {"params", params},
+          {"checks", checks},
+          {"residuals", residuals},
+          {"sanity", Passed() ? "PASS" : "FAIL"}};
+}
+
+void WriteCsv(const fs::path& path, const std::vector<std::string>& header,
+              const std::vector<std::vector<double>>& columns) {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error(path.string() + ": cannot write");
+  for (std::size_t c = 0; c < header.size(); ++c) out << (c ? "," : "") << header[c];
+  out << "\n";
+  const std::size_t rows = columns.empty() ? 0 : columns[0].size();
+  for (std::size_t r = 0; r < rows; ++r) {
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+      out << (c ? "," : "") << fmt::format("{:.10g}", columns[c][r]);
+    }
+    out << "\n";
+  }
+  if (!out) throw std::runtime_error(path.string() + ": write failed");
+}
+
+fs::path ReportDir(const std::string& out) { return fs::path(out + ".report"); }
+
+void Finalize(const fs::path& tmp, const fs::path& final_dir, bool plots) {
+  if (plots) {
+    const std::string script = std::string(FNMPC_SOURCE_DIR) + "/tools/sysid_report.py";
+    // No shell: the paths go to the script verbatim, whatever characters they hold.
+    const int rc = RunProgram({"/usr/bin/python3", script, tmp.string()}, {"MPLBACKEND=Agg"});
+    if (rc != 0) {
+      fmt::print(stderr, "fnmpc: warning: {} failed (status {}); CSVs are in {}\n", script, rc,
+                 final_dir.string());
+    }
+  }
+  std::error_code ec;
+  fs::remove_all(final_dir, ec);
+  fs::rename(tmp, final_dir);
+}
+
+fs::path MakeTemp(const fs::path& final_dir) {
+  fs::path tmp = final_dir;
+  tmp += ".tmp";
+  std::error_code ec;
+  fs::remove_all(tmp, ec);
+  fs::create_directories(tmp);
+  return tmp;
+}
+
+void PrintStages(const std::vector<Stage>& stages) {
+  for (const auto& s : stages) {
+    if (!s.ok) {
+      fmt::print("  stage {:<15} FAILED: {}\n", s.name, s.reason);
+      continue;
+    }
+    int failed = 0;
+    std::string which;
+    for (const auto& c : s.checks) {
+      if (!c["pass"].get<bool>()) {
+        ++failed;
+        which += (which.empty() ? "" : ", ") + c["name"].get<std::string>();
+      }
+    }
+    fmt::print("  stage {:<15} ok, sanity {}{}\n", s.name, failed == 0 ? "PASS" : "FAIL",
+               failed == 0 ? "" : " (" + which + ")");
+  }
+}
+
+}  // namespace fnmpc::app::sysid_report
