@@ -390,9 +390,9 @@ constexpr double kMaxMocapGap = 0.5;
 /// First-order filter of the motion-capture height's rate [s] (1 mm noise at 60 Hz: about
 /// 0.03 m/s left).
 constexpr double kMocapRateFilterTime = 0.1;
-/// Vertical consistency check: EKF v_z against the motion-capture rate [m/s], for [s].
-constexpr double kVerticalSpeedMismatch = 1.0;
-constexpr double kVerticalMismatchTime = 0.3;
+/// Consistency check: EKF velocity against the motion-capture rate [m/s], for [s].
+constexpr double kVelocityMismatch = 1.0;
+constexpr double kVelocityMismatchTime = 0.3;
 
 bool Rejected(estimation::EkfStatus s) {
   using estimation::EkfStatus;
@@ -444,7 +444,7 @@ void VehicleController::Process(const Measurement& m) {
       // kept, for the take-off and landing PID.
       if (config_.leader) ekf_.Process(m);
       if (!config_.leader && std::isfinite(m.position.z())) mocap_z_ = m.position.z();
-      TrackMocapHeight(m);
+      TrackMocapPose(m);
       break;
     case SensorKind::kCompass:
       if (!config_.leader && !ekf_.initialized() && std::isfinite(m.yaw)) {
@@ -533,49 +533,49 @@ void VehicleController::UpdateNeighbourPresence(double t) {
   }
 }
 
-// Raw motion-capture height and its filtered rate, kept apart from the EKF: the failsafe's
-// height loop and the vertical consistency check must not depend on the estimate they check.
-void VehicleController::TrackMocapHeight(const Measurement& m) {
-  const double z = m.position.z();
-  if (!std::isfinite(z) || !std::isfinite(m.stamp)) return;
+// Raw motion-capture pose and its filtered rate, kept apart from the EKF: the failsafe and
+// the consistency check must not depend on the estimate they check.
+void VehicleController::TrackMocapPose(const Measurement& m) {
+  if (!m.position.allFinite() || !std::isfinite(m.stamp)) return;
   const double dt = std::isfinite(raw_z_stamp_) ? m.stamp - raw_z_stamp_ : kInf;
-  if (dt > 0.0 && dt <= kMaxMocapGap) {
+  if (!(dt > 0.0)) return;  // out of order or repeated: keep the newer sample
+  if (dt <= kMaxMocapGap) {
     const double a = 1.0 - std::exp(-dt / kMocapRateFilterTime);
-    raw_vz_ =
-        std::isfinite(raw_vz_) ? raw_vz_ + a * ((z - raw_z_) / dt - raw_vz_) : (z - raw_z_) / dt;
-  } else if (!(dt > 0.0)) {
-    return;  // out of order or repeated: keep the newer sample
+    const Vec3 rate = (m.position - raw_p_) / dt;
+    raw_v_ = raw_v_.allFinite() ? Vec3(raw_v_ + a * (rate - raw_v_)) : rate;
   } else {
-    raw_vz_ = kNaN;  // a gap: restart the rate
+    raw_v_.setConstant(kNaN);  // a gap: restart the rate
   }
-  raw_z_ = z;
+  raw_p_ = m.position;
+  raw_z_ = m.position.z();
+  raw_yaw_ = m.euler.z();
   raw_z_stamp_ = m.stamp;
 }
 
-bool VehicleController::RawHeightFresh(double t) const {
+bool VehicleController::RawMocapFresh(double t) const {
   return std::isfinite(raw_z_stamp_) && t - raw_z_stamp_ <= kMaxMocapGap;
 }
 
-// The EKF's vertical speed against the motion-capture height's rate: a disagreement above
-// kVerticalSpeedMismatch for longer than kVerticalMismatchTime marks the estimate unusable
-// (an integrating velocity estimate, e.g. without optical flow, diverges long before its
-// covariance says so).
-void VehicleController::CheckVerticalConsistency(double t) {
-  const double vz = estimates_.own.velocity.z();
-  if (!RawHeightFresh(t) || !std::isfinite(raw_vz_) || !std::isfinite(vz)) {
-    vertical_mismatch_since_ = kNaN;
+// The EKF's velocity against the motion-capture rate: a disagreement above
+// kVelocityMismatch on any axis for longer than kVelocityMismatchTime marks the estimate
+// unusable (an integrating velocity estimate, e.g. without optical flow, diverges long
+// before its covariance says so). Needs motion capture; without it nothing is checked.
+void VehicleController::CheckVelocityConsistency(double t) {
+  const Vec3& v = estimates_.own.velocity;
+  if (!RawMocapFresh(t) || !raw_v_.allFinite() || !v.allFinite()) {
+    velocity_mismatch_since_ = kNaN;
     return;
   }
-  if (std::abs(vz - raw_vz_) <= kVerticalSpeedMismatch) {
-    vertical_mismatch_since_ = kNaN;
-  } else if (!std::isfinite(vertical_mismatch_since_)) {
-    vertical_mismatch_since_ = t;
+  if ((v - raw_v_).cwiseAbs().maxCoeff() <= kVelocityMismatch) {
+    velocity_mismatch_since_ = kNaN;
+  } else if (!std::isfinite(velocity_mismatch_since_)) {
+    velocity_mismatch_since_ = t;
   }
 }
 
-bool VehicleController::VerticallyInconsistent(double t) const {
-  return std::isfinite(vertical_mismatch_since_) &&
-         t - vertical_mismatch_since_ >= kVerticalMismatchTime;
+bool VehicleController::VelocityInconsistent(double t) const {
+  return std::isfinite(velocity_mismatch_since_) &&
+         t - velocity_mismatch_since_ >= kVelocityMismatchTime;
 }
 
 // The NMPC can run on the estimate: the own state is valid and finite and (follower) at
@@ -583,7 +583,7 @@ bool VehicleController::VerticallyInconsistent(double t) const {
 bool VehicleController::EstimateUsable(double t) const {
   const auto& own = estimates_.own;
   if (!own.valid || !own.velocity.allFinite() || !own.euler.allFinite()) return false;
-  if (VerticallyInconsistent(t)) return false;
+  if (VelocityInconsistent(t)) return false;
   if (config_.leader) return own.position.allFinite();
   bool any = false;
   for (std::size_t j = 0; j < estimates_.neighbours.size(); ++j) {
@@ -605,7 +605,7 @@ ControlOutput VehicleController::Control(double t) {
     }
   }
   UpdateNeighbourPresence(t);
-  CheckVerticalConsistency(t);
+  CheckVelocityConsistency(t);
   const ControlOutput out = Step(t);
   if (ekf_.initialized()) ekf_.SetCommand(t, out.thrust, out.roll, out.pitch, out.yaw);
   return out;
@@ -639,7 +639,7 @@ ControlOutput VehicleController::ControlWithEstimates(
     }
   }
   UpdateNeighbourPresence(t);
-  CheckVerticalConsistency(t);
+  CheckVelocityConsistency(t);
   return Step(t);
 }
 
@@ -648,7 +648,7 @@ ControlOutput VehicleController::ControlWithEstimates(
 bool VehicleController::PidEstimateLost(double t, double z, ControlOutput* out) {
   const auto& own = estimates_.own;
   const bool usable = own.valid && std::isfinite(z) && own.velocity.allFinite() &&
-                      own.euler.allFinite() && !VerticallyInconsistent(t);
+                      own.euler.allFinite() && !VelocityInconsistent(t);
   const RecoveryDecision d = ladder_.Update(t, usable, false);
   if (d.action != RecoveryAction::kFailsafe) return false;
   out->recovery = d.action;
@@ -676,8 +676,8 @@ void VehicleController::EnterFailsafe(double t, RecoveryReason reason) {
 // The failsafe's height: the raw motion-capture height when fresh, else the controller's
 // height if the estimate is still valid.
 double VehicleController::FailsafeHeight(double t) const {
-  if (RawHeightFresh(t)) return raw_z_;
-  return estimates_.own.valid && !VerticallyInconsistent(t) ? Height() : kNaN;
+  if (RawMocapFresh(t)) return raw_z_;
+  return estimates_.own.valid && !VelocityInconsistent(t) ? Height() : kNaN;
 }
 
 // Touchdown: on the ground (height within the margin) and no longer moving down, so the
@@ -844,8 +844,8 @@ ControlOutput VehicleController::Step(double t) {
     const double vz_ref = descending ? -fs : 0.0;
     const double hover = config_.params.mass * kGravity;
     const double zf = FailsafeHeight(t);
-    const bool raw = RawHeightFresh(t);
-    const double vz_meas = raw && std::isfinite(raw_vz_) ? raw_vz_ : own.velocity.z();
+    const bool raw = RawMocapFresh(t);
+    const double vz_meas = raw && std::isfinite(raw_v_.z()) ? raw_v_.z() : own.velocity.z();
     if (std::isfinite(zf)) {
       if (!std::isfinite(z_ref_)) z_ref_ = zf;
       if (descending) z_ref_ = std::max(ground - 0.3, z_ref_ - fs * dt);
@@ -858,12 +858,18 @@ ControlOutput VehicleController::Step(double t) {
         phase_start_ = t;
         thrust = 0.0;
       }
-    } else if (std::isfinite(vz_meas) && !VerticallyInconsistent(t)) {
+    } else if (std::isfinite(vz_meas) && !VelocityInconsistent(t)) {
       thrust = hover + config_.params.mass * config_.pid.kd_z * (vz_ref - vz_meas);
     } else {
       thrust = descending ? kFailsafeBlindThrustFactor * hover : hover;
     }
     roll = pitch = 0.0;
+    if (raw && raw_v_.allFinite() && std::isfinite(raw_yaw_)) {
+      // Motion capture left: brake the horizontal velocity too (the PID's damping).
+      const PidCommand c = pid_.Update(0.0, zf, 0.0, zf, raw_v_, Vec3(0.0, 0.0, raw_yaw_));
+      roll = c.roll;
+      pitch = c.pitch;
+    }
     thrust = std::clamp(thrust, 0.0, config_.pid.max_thrust);
   }
 

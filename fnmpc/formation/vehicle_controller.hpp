@@ -186,11 +186,11 @@ class VehicleController {
   void EnterFailsafe(double t, RecoveryReason reason);
   bool PidEstimateLost(double t, double z, ControlOutput* out);
   bool TouchedDown(double z, double vz) const;
-  void TrackMocapHeight(const Measurement& m);
-  bool RawHeightFresh(double t) const;
+  void TrackMocapPose(const Measurement& m);
+  bool RawMocapFresh(double t) const;
   double FailsafeHeight(double t) const;
-  void CheckVerticalConsistency(double t);
-  bool VerticallyInconsistent(double t) const;
+  void CheckVelocityConsistency(double t);
+  bool VelocityInconsistent(double t) const;
 
   ControllerConfig config_;
   estimation::VehicleEkf ekf_;
@@ -215,10 +215,11 @@ class VehicleController {
   long fallbacks_ = 0;
   ControllerEstimates estimates_;
   RecoveryLadder ladder_;
-  // Raw motion-capture height [m], its stamp [s] and filtered rate [m/s]; start of a
-  // disagreement between it and the EKF's vertical speed [s].
-  double raw_z_ = kNaN, raw_z_stamp_ = kNaN, raw_vz_ = kNaN;
-  double vertical_mismatch_since_ = kNaN;
+  // Raw motion-capture pose [m, rad], its stamp [s] and filtered rate [m/s]; start of a
+  // disagreement between that rate and the EKF's velocity [s].
+  double raw_z_ = kNaN, raw_z_stamp_ = kNaN, raw_yaw_ = kNaN;
+  Vec3 raw_p_ = Vec3::Constant(kNaN), raw_v_ = Vec3::Constant(kNaN);
+  double velocity_mismatch_since_ = kNaN;
   RecoveryReason failsafe_reason_ = RecoveryReason::kNone;
   bool nmpc_started_ = false;
   bool reinit_pending_ = false;
