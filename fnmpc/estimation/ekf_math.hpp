@@ -31,6 +31,33 @@ void Symmetrize(Mat<N, N>* P) {
   *P = 0.5 * (*P + P->transpose()).eval();
 }
 
+/// Guard against forward time jumps of event stamps. An event more than `max_jump` past
+/// the newest one is rejected; `reset_count` consecutive such events within `max_jump` of
+/// each other mean that the clock really moved on, and the filter should re-anchor.
+class TimeJumpGuard {
+ public:
+  enum class Verdict { kAccept, kReject, kReanchor };
+
+  /// Classifies an event stamped t against the newest event's stamp (NaN: no reference).
+  Verdict Check(double t, double newest, double max_jump, int reset_count) {
+    if (!std::isfinite(newest) || !(t > newest + max_jump)) {
+      count_ = 0;
+      return Verdict::kAccept;
+    }
+    count_ = count_ > 0 && std::abs(t - last_) <= max_jump ? count_ + 1 : 1;
+    last_ = t;
+    if (count_ < reset_count) return Verdict::kReject;
+    count_ = 0;
+    return Verdict::kReanchor;
+  }
+  /// Forgets the jumps seen so far.
+  void Reset() { count_ = 0; }
+
+ private:
+  int count_ = 0;
+  double last_ = kNaN;
+};
+
 /// Result of one Kalman update.
 struct UpdateResult {
   EkfStatus status = EkfStatus::kAccepted;  ///< kAccepted, kRejectedGated or kNumericalError

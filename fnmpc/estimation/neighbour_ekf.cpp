@@ -207,17 +207,10 @@ NeighbourEstimate NeighbourEkf::EstimateAt(double t, const Vec3& own_velocity) c
 }
 
 bool NeighbourEkf::TimeJumpRejected(double t) {
-  if (!std::isfinite(s_.time) || !(t > s_.time + config_.max_time_jump)) {
-    time_jump_count_ = 0;
-    return false;
-  }
-  const bool consistent =
-      time_jump_count_ > 0 && std::abs(t - time_jump_last_) <= config_.max_time_jump;
-  time_jump_count_ = consistent ? time_jump_count_ + 1 : 1;
-  time_jump_last_ = t;
-  if (time_jump_count_ < config_.time_jump_reset_count) return true;
+  const TimeJumpGuard::Verdict v =
+      time_jump_.Check(t, s_.time, config_.max_time_jump, config_.time_jump_reset_count);
+  if (v != TimeJumpGuard::Verdict::kReanchor) return v == TimeJumpGuard::Verdict::kReject;
   // The clock really moved on: forget the neighbour; the next measurement re-initialises it.
-  time_jump_count_ = 0;
   ++counters_.time_resets;
   buffer_.Clear();
   s_.initialized = false;

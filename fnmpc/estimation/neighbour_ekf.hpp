@@ -3,6 +3,7 @@
 
 #include "fnmpc/core/sensors.hpp"
 #include "fnmpc/core/types.hpp"
+#include "fnmpc/estimation/ekf_math.hpp"
 #include "fnmpc/estimation/ekf_types.hpp"
 #include "fnmpc/estimation/replay_buffer.hpp"
 
@@ -177,8 +178,7 @@ class NeighbourEkf {
   State s_;
   ReplayBuffer<Event, State> buffer_;
   EkfCounters counters_;
-  int time_jump_count_ = 0;
-  double time_jump_last_ = kNaN;
+  TimeJumpGuard time_jump_;
 };
 
 }  // namespace fnmpc::estimation

@@ -263,23 +263,16 @@ void VehicleEkf::Initialize(double t, const Vec3& position, const Vec3& euler) {
                                 std::to_string(t));
   }
   buffer_.Clear();
-  time_jump_count_ = 0;
+  time_jump_.Reset();
   InitState(t, position, euler, &s_);
 }
 
 bool VehicleEkf::TimeJumpRejected(double t) {
-  if (!std::isfinite(s_.time) || !(t > s_.time + config_.max_time_jump)) {
-    time_jump_count_ = 0;
-    return false;
-  }
-  const bool consistent =
-      time_jump_count_ > 0 && std::abs(t - time_jump_last_) <= config_.max_time_jump;
-  time_jump_count_ = consistent ? time_jump_count_ + 1 : 1;
-  time_jump_last_ = t;
-  if (time_jump_count_ < config_.time_jump_reset_count) return true;
+  const TimeJumpGuard::Verdict v =
+      time_jump_.Check(t, s_.time, config_.max_time_jump, config_.time_jump_reset_count);
+  if (v != TimeJumpGuard::Verdict::kReanchor) return v == TimeJumpGuard::Verdict::kReject;
   // The clock really moved on: re-anchor at t without integrating the gap. The state is
   // kept; velocity, position and attitude variances are raised to cover the unknown gap.
-  time_jump_count_ = 0;
   ++counters_.time_resets;
   buffer_.Clear();
   if (s_.initialized) {

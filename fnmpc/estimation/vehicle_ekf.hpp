@@ -5,6 +5,7 @@
 
 #include "fnmpc/core/sensors.hpp"
 #include "fnmpc/core/types.hpp"
+#include "fnmpc/estimation/ekf_math.hpp"
 #include "fnmpc/estimation/ekf_types.hpp"
 #include "fnmpc/estimation/replay_buffer.hpp"
 #include "fnmpc/model/vehicle_params.hpp"
@@ -232,8 +233,7 @@ class VehicleEkf {
   State s_;
   ReplayBuffer<Event, State> buffer_;
   EkfCounters counters_;
-  int time_jump_count_ = 0;       // consecutive forward jumps
-  double time_jump_last_ = kNaN;  // stamp of the last one
+  TimeJumpGuard time_jump_;
 };
 
 /// Continuous-time IMU-driven flying model f(x, accel, gyro) (VehicleStateIndex layout).

@@ -516,6 +516,18 @@ TEST(VehicleEkfTest, InvalidConfigThrowsNamingTheField) {
   c = VehicleEkfConfig{};
   c.gate_probability = 1.0;
   EXPECT_NE(message(c).find("gate_probability"), std::string::npos);
+  c = VehicleEkfConfig{};
+  c.max_time_jump = kInf;
+  EXPECT_NE(message(c).find("max_time_jump"), std::string::npos);
+  c = VehicleEkfConfig{};
+  c.max_pitch = 1.6;
+  EXPECT_NE(message(c).find("max_pitch"), std::string::npos);
+  c = VehicleEkfConfig{};
+  c.max_staleness[1] = kNaN;
+  EXPECT_NE(message(c).find("max_staleness"), std::string::npos);
+  c = VehicleEkfConfig{};
+  c.max_time_jump = 1e6;
+  EXPECT_NE(message(c).find("sub-step cap"), std::string::npos);
   EXPECT_TRUE(message(VehicleEkfConfig{}).empty());
 }
 
