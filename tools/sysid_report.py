@@ -28,7 +28,56 @@ def save(fig, path):
     plt.close(fig)
 
 
+def fmt_num(x):
+    return "-" if x is None else ("%.6g" % x if isinstance(x, (int, float)) else str(x))
+
+
+def stage_lines(stages):
+    """summary.md section per stage: parameters with standard errors, residuals, checks."""
+    lines = []
+    for st in stages:
+        status = ("sanity " + st["sanity"]) if st["ok"] else "FAILED"
+        lines += ["", f"## Stage: {st['name']} ({status})", ""]
+        if not st["ok"]:
+            lines += [f"Reason: `{st['reason']}`", ""]
+            continue
+        lines += ["| parameter | value | std. error | unit |", "|---|---|---|---|"]
+        for p in st["params"]:
+            if p["value"] is None:
+                continue
+            lines.append(f"| {p['name']} | {fmt_num(p['value'])} | {fmt_num(p['std_error'])} | "
+                         f"{p['unit']} |")
+        if st["residuals"]:
+            lines += ["", "Residuals and fit statistics: " + ", ".join(
+                f"{k} {fmt_num(v)}" for k, v in sorted(st["residuals"].items())), ""]
+        lines += ["| sanity check | value | limit | result |", "|---|---|---|---|"]
+        for c in st["checks"]:
+            lines.append(f"| {c['name']} | {fmt_num(c['value'])} | {c['limit']} | "
+                         f"{'PASS' if c['pass'] else 'FAIL'} |")
+    return lines
+
+
 def sysid_report(d, s):
+    stages = {st["name"]: st for st in s.get("stages", [])}
+    ok = {name: st["ok"] for name, st in stages.items()}
+    if ok.get("propulsion", False):
+        bench_plot(d)
+    if ok.get("inertia", False):
+        pendulum_plots(d, s)
+    if ok.get("attitude model", False):
+        attitude_plots(d, s)
+    lines = [f"# System identification: {s.get('name', '')}", "",
+             f"Campaign: `{s['campaign']}`", "",
+             "Vehicle file: " + ("complete" if s.get("complete") else
+                                 "**INCOMPLETE** (failed stages below)"), ""]
+    lines += stage_lines(s.get("stages", []))
+    lines += ["", "Plots: bench.png, pendulum_{x,y,z}.png, attitude_{roll,pitch,yaw}.png "
+              "(of the stages that ran)", ""]
+    with open(os.path.join(d, "summary.md"), "w") as f:
+        f.write("\n".join(lines))
+
+
+def bench_plot(d):
     b = read_csv(os.path.join(d, "bench.csv"))
     fig, ax = plt.subplots(1, 3, figsize=(14, 4))
     rpm2 = [r * r for r in b["rpm"]]
@@ -50,6 +99,8 @@ def sysid_report(d, s):
     ax[2].set_title("cubic thrust-throttle-voltage fit")
     save(fig, os.path.join(d, "bench.png"))
 
+
+def pendulum_plots(d, s):
     for axis in "xyz":
         p = read_csv(os.path.join(d, f"pendulum_{axis}.csv"))
         fig, ax = plt.subplots(figsize=(10, 3.5))
@@ -63,6 +114,8 @@ def sysid_report(d, s):
         ax.legend()
         save(fig, os.path.join(d, f"pendulum_{axis}.png"))
 
+
+def attitude_plots(d, s):
     for axis in ("roll", "pitch", "yaw"):
         a = read_csv(os.path.join(d, f"attitude_{axis}.csv"))
         at = s["attitude"][axis]
@@ -72,34 +125,14 @@ def sysid_report(d, s):
         ax.plot(a["t"], a["first_order"], "-", lw=1.2,
                 label=f"first order: tau {at['time_constant']:.4f} + delay {at['delay']:.4f} s, "
                       f"k {at['gain']:.3f}")
-        ax.plot(a["t"], a["pd_loop"], ":", lw=1.2,
-                label=f"sim PD loop: K_p {at['kp']:.1f}, K_d {at['kd']:.2f}")
+        if "kp" in at:
+            ax.plot(a["t"], a["pd_loop"], ":", lw=1.2,
+                    label=f"sim PD loop: K_p {at['kp']:.1f}, K_d {at['kd']:.2f}, "
+                          f"delay {at['pd_delay']:.3f} s")
         ax.set_xlabel("t [s]")
         ax.set_ylabel(f"{axis} [rad]")
         ax.legend(fontsize=8)
         save(fig, os.path.join(d, f"attitude_{axis}.png"))
-
-    lines = [f"# System identification: {s.get('name', '')}", "",
-             f"Campaign: `{s['campaign']}`", "",
-             "| quantity | value | fit quality |", "|---|---|---|",
-             f"| mass | {s['mass']:.4f} kg | from the campaign file |",
-             f"| thrust constant T_k | {s['thrust_constant']:.4e} N/rpm^2 | rms {s['thrust_rms']:.3g} N |",
-             f"| torque constant T_q | {s['torque_constant']:.4e} N m/rpm^2 | rms {s['torque_rms']:.3g} N m |",
-             f"| throttle polynomial | cubic in (f, V) | rms {s['throttle_rms']:.4f}, max {s['throttle_max_abs']:.4f} ({s['bench_samples']} samples) |"]
-    for axis in "xyz":
-        pe = s["pendulum"][axis]
-        lines.append(f"| inertia {axis} | {pe['inertia']:.5f} kg m^2 | T = {pe['natural_period']:.4f} s, "
-                     f"decay {pe['decay_rate']:.3f} 1/s, rms {pe['rms']:.2g} rad |")
-    for axis in ("roll", "pitch", "yaw"):
-        at = s["attitude"][axis]
-        lines.append(f"| {axis} time constant (tau + delay) | {at['equivalent_time_constant']:.4f} s | "
-                     f"tau {at['time_constant']:.4f} s, delay {at['delay']:.4f} s, rms {at['rms']:.2g} rad |")
-        lines.append(f"| {axis} gain k | {at['gain']:.4f} | |")
-        lines.append(f"| {axis} K_p, K_d | {at['kp']:.1f} 1/s^2, {at['kd']:.2f} 1/s | "
-                     f"rms {at['pd_rms']:.2g} rad (to first order: {at['pd_rms_to_first_order']:.2g} rad) |")
-    lines += ["", "Plots: bench.png, pendulum_{x,y,z}.png, attitude_{roll,pitch,yaw}.png", ""]
-    with open(os.path.join(d, "summary.md"), "w") as f:
-        f.write("\n".join(lines))
 
 
 def calibrate_report(d, s):
@@ -146,7 +179,7 @@ def calibrate_report(d, s):
              f"| mean position error, before | {s['position_error_before']:.4f} m |",
              f"| mean position error, after | {s['position_error_after']:.4f} m |",
              f"| windows | {s['windows']} x {s['window']} s, every {s['window_stride']} s |",
-             "", "Plots: trajectories.png, commands.png", ""]
+             ""] + stage_lines(s.get("stages", [])) + ["", "Plots: trajectories.png, commands.png", ""]
     with open(os.path.join(d, "summary.md"), "w") as f:
         f.write("\n".join(lines))
 

@@ -3,6 +3,7 @@
 // scale from a logged flight by windowed open-loop predictions (docs/sysid.md).
 #include <fmt/core.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -64,6 +65,7 @@ int RunCalibrate(const CalibrateOptions& o) {
   const auto after = sysid::PredictWindows(out, log, o.settings);
   const fs::path final_dir = sysid_report::ReportDir(o.output);
   const fs::path dir = sysid_report::MakeTemp(final_dir);
+  bool sane = true;
   {
     std::vector<std::vector<double>> w(11);
     for (std::size_t k = 0; k < before.size(); ++k) {
@@ -99,8 +101,28 @@ int RunCalibrate(const CalibrateOptions& o) {
                            {"t", "thrust_cmd", "roll_cmd", "pitch_cmd", "thrust_before",
                             "thrust_after", "roll_after", "pitch_after", "roll", "pitch"},
                            c);
+    sysid_report::Stage stage("calibration");
+    stage.ok = true;
+    stage.Param("bias roll", r.bias.roll, r.std_error[0], "rad");
+    stage.Param("bias pitch", r.bias.pitch, r.std_error[1], "rad");
+    stage.Param("thrust scale", r.bias.thrust_scale, r.std_error[2], "-");
+    stage.residuals = {{"position_error_before", r.position_error_before},
+                       {"position_error_after", r.position_error_after},
+                       {"rms_scaled", r.rms_scaled},
+                       {"windows", r.windows}};
+    stage.Check("mean position error after / before",
+                r.position_error_after / r.position_error_before, 1.0);
+    stage.CheckTrue("estimates inside their bounds", !r.at_bound,
+                    fmt::format("roll {:.4f}, pitch {:.4f}, scale {:.4f}", r.bias.roll,
+                                r.bias.pitch, r.bias.thrust_scale));
+    stage.Check("abs(thrust scale - 1)", std::abs(r.bias.thrust_scale - 1.0), 0.3);
+    stage.Check("std error of the roll bias [rad]", r.std_error[0], 0.005);
+    stage.Check("std error of the pitch bias [rad]", r.std_error[1], 0.005);
+    stage.Check("std error of the thrust scale", r.std_error[2], 0.01);
+    sane = stage.Passed();
     nlohmann::json j;
     j["kind"] = "calibrate";
+    j["stages"] = nlohmann::json::array({stage.Json()});
     j["vehicle"] = o.vehicle;
     j["flight"] = o.flight;
     j["bias_roll"] = r.bias.roll;
@@ -122,8 +144,11 @@ int RunCalibrate(const CalibrateOptions& o) {
              r.bias.thrust_scale);
   fmt::print("  mean position error of the predictions: before {:.4f} m, after {:.4f} m\n",
              r.position_error_before, r.position_error_after);
+  fmt::print("  standard errors: roll {:.2g} rad, pitch {:.2g} rad, thrust {:.2g}\n",
+             r.std_error[0], r.std_error[1], r.std_error[2]);
+  fmt::print("  sanity checks {}\n", sane ? "PASS" : "FAIL (see the report)");
   fmt::print("  report: {}\n", final_dir.string());
-  return 0;
+  return sane ? 0 : 3;
 }
 
 void Register(CLI::App& app, std::vector<Command>& registry) {

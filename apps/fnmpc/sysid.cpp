@@ -137,7 +137,6 @@ int RunSysid(const SysidOptions& o) {
     auto& s = prop_stage;
     s.Param("thrust_constant", prop.thrust_constant, prop.thrust_constant_std_error, "N/rpm^2");
     s.Param("torque_constant", prop.torque_constant, prop.torque_constant_std_error, "N m/rpm^2");
-    s.Param("throttle_polynomial (10 coefficients)", kNaN, -1.0, "-");
     s.residuals = {{"thrust_rms", prop.thrust_rms},
                    {"torque_rms", prop.torque_rms},
                    {"throttle_rms", prop.throttle_rms},
@@ -150,7 +149,7 @@ int RunSysid(const SysidOptions& o) {
     s.Check("thrust rms / mean thrust", prop.thrust_rms / thrust_mean, 0.05);
     s.Check("torque rms / mean torque", prop.torque_rms / torque_mean, 0.05);
     s.Check("throttle polynomial rms", prop.throttle_rms, 0.01);
-    s.Check("throttle polynomial max |residual|, thrust >= 20 % of max",
+    s.Check("throttle polynomial max abs residual, thrust >= 20 % of max",
             prop.throttle_max_abs_envelope, 0.02);
     // The map must be invertible over the bench's thrust and voltage range.
     double fmin = kInf, fmax = 0.0, vmin = kInf, vmax = 0.0;

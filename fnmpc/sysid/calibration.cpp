@@ -6,6 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace fnmpc::sysid {
 
@@ -167,8 +168,23 @@ CalibrationResult Calibrate(const model::VehicleParams& params, const FlightLog&
   so.logging_type = ceres::SILENT;
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
-  res.converged = summary.IsSolutionUsable();
+  res.converged = summary.IsSolutionUsable() && std::isfinite(summary.final_cost);
   res.bias = {p[0], p[1], p[2]};
+  const double n_res = static_cast<double>(summary.num_residuals);
+  if (n_res > 3.0) {
+    const double s2 = 2.0 * summary.final_cost / (n_res - 3.0);
+    res.rms_scaled = std::sqrt(2.0 * summary.final_cost / n_res);
+    ceres::Covariance::Options co;
+    ceres::Covariance cov(co);
+    const std::vector<std::pair<const double*, const double*>> blocks{{p.data(), p.data()}};
+    if (cov.Compute(blocks, &problem)) {
+      std::array<double, 9> c{};
+      cov.GetCovarianceBlock(p.data(), p.data(), c.data());
+      for (int k = 0; k < 3; ++k) res.std_error[k] = std::sqrt(s2 * c[4 * k]);
+    }
+  }
+  res.at_bound = std::abs(p[0]) >= 0.5 - 1e-9 || std::abs(p[1]) >= 0.5 - 1e-9 ||
+                 p[2] <= 0.5 + 1e-9 || p[2] >= 2.0 - 1e-9;
   model::VehicleParams after = params;
   after.bias = res.bias;
   after.has_bias = true;

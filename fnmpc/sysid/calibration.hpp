@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
+#include <array>
 #include <vector>
 
 #include "fnmpc/core/types.hpp"
@@ -42,6 +43,12 @@ struct CalibrationResult {
   double position_error_after = 0.0;  ///< the same with the estimated bias [m]
   int windows = 0;                    ///< windows used
   bool converged = false;             ///< Ceres reported a usable solution
+  /// Standard errors of (roll, pitch, thrust scale) from the Ceres covariance, scaled by
+  /// the residual variance; NaN when it is not computable. The window residuals are
+  /// correlated in time, so these are optimistic (a lower bound).
+  std::array<double, 3> std_error{kNaN, kNaN, kNaN};
+  bool at_bound = false;    ///< an estimate ended on its bound (+-0.5 rad, [0.5, 2])
+  double rms_scaled = 0.0;  ///< RMS of the scaled residuals at the solution [-]
 };
 
 /// One step of the NMPC prediction model with bias: the attitude tracks k (cmd + bias),
