@@ -141,7 +141,8 @@ def main():
         out.append("<tr><th align=left>%s</th><td>%s</td></tr>" % (html.escape(k), fmt(v)))
     out.append("</table>")
     keys = ["seed", "steady_state_formation_error_m", "mean_formation_error_m", "max_formation_error_m",
-            "solver_time_median_s", "solver_time_max_s", "fallbacks", "min_separation_m", "landed_safely"]
+            "solver_time_median_s", "solver_time_max_s", "fallbacks", "recoveries", "failsafes",
+            "min_separation_m", "landed_safely"]
     out.append("<h2>Runs</h2><table><tr>%s</tr>" % "".join("<th>%s</th>" % k for k in keys))
     for r in runs:
         out.append("<tr>%s</tr>" % "".join("<td>%s</td>" % fmt(r.get(k)) for k in keys))
