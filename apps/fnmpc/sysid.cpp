@@ -249,6 +249,7 @@ int RunSysid(const SysidOptions& o) {
       s.Param(axes[a] + " gain", f.gain, f.std_error[1], "-");
       s.Param(axes[a] + " lag tau (without delay)", f.time_constant, f.std_error[0], "s");
       s.Param(axes[a] + " delay", f.delay, f.std_error[2], "s");
+      s.Param(axes[a] + " offset c (steady bias x gain)", f.offset, f.std_error[4], "rad");
       s.residuals["rms_" + axes[a]] = f.rms;
       s.residuals["noise_sigma_" + axes[a]] = f.noise_sigma;
       s.residuals["r_squared_" + axes[a]] = f.r_squared;
@@ -261,6 +262,7 @@ int RunSysid(const SysidOptions& o) {
                                 {"delay", f.delay},
                                 {"equivalent_time_constant", f.equivalent_time_constant},
                                 {"gain", f.gain},
+                                {"offset", f.offset},
                                 {"rms", f.rms}};
     }
     have.push_back("attitude");
@@ -374,12 +376,14 @@ int RunSysid(const SysidOptions& o) {
     }
     for (int a = 0; a < 3; ++a) {
       std::vector<double> y1, y2(t.size(), kNaN);
-      sid::SimulateFirstOrder<double>(t, refs[a], fo[a].time_constant, fo[a].gain, fo[a].delay,
-                                      fo[a].initial, &y1);
+      sid::SimulateFirstOrder<double>(t, refs[a], fo[a].time_constant, fo[a].gain, fo[a].offset,
+                                      fo[a].delay, fo[a].initial, &y1);
       if (pd_stage.ok) {
         sid::AttitudeLoopSettings ls = LoopSettings(o);
         ls.delay = pd[a].delay;
-        sid::SimulateAttitudeLoop<double>(t, refs[a], fo[a].gain, pd[a].kp, pd[a].kd, fo[a].initial,
+        std::vector<double> ref_c(refs[a]);
+        for (double& r : ref_c) r += fo[a].offset / fo[a].gain;
+        sid::SimulateAttitudeLoop<double>(t, ref_c, fo[a].gain, pd[a].kp, pd[a].kd, fo[a].initial,
                                           ls, &y2);
       }
       sysid_report::WriteCsv(dir / fmt::format("attitude_{}.csv", axes[a]),

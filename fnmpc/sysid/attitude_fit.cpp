@@ -3,6 +3,8 @@
 
 #include <ceres/ceres.h>
 
+#include <Eigen/Dense>
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -14,7 +16,8 @@ namespace fnmpc::sysid {
 
 template <class T>
 void SimulateFirstOrder(const std::vector<double>& t, const std::vector<double>& ref, const T& tau,
-                        const T& gain, const T& delay, const T& y0, std::vector<T>* y) {
+                        const T& gain, const T& offset, const T& delay, const T& y0,
+                        std::vector<T>* y) {
   using std::exp;
   const std::size_t n = t.size();
   y->resize(n);
@@ -23,7 +26,7 @@ void SimulateFirstOrder(const std::vector<double>& t, const std::vector<double>&
   T s = T(t[0]);
   std::size_t j = 0;  // ref[j] acts for s in [t_j + d, t_{j+1} + d); ref[0] also before
   auto propagate = [&](double r, const T& dt) {
-    const T target = gain * r;
+    const T target = gain * r + offset;
     state = target + (state - target) * exp(-dt / tau);
   };
   (*y)[0] = state;
@@ -45,7 +48,7 @@ void SimulateFirstOrder(const std::vector<double>& t, const std::vector<double>&
 
 template void SimulateFirstOrder<double>(const std::vector<double>&, const std::vector<double>&,
                                          const double&, const double&, const double&, const double&,
-                                         std::vector<double>*);
+                                         const double&, std::vector<double>*);
 
 template <class T>
 void SimulateAttitudeLoop(const std::vector<double>& t, const std::vector<double>& ref, double gain,
@@ -118,7 +121,7 @@ struct FirstOrderSim {
   bool fit_delay;
   template <class T>
   void operator()(const T* p, std::vector<T>* y) const {
-    SimulateFirstOrder<T>(*t, *ref, p[0], p[1], fit_delay ? p[2] : T(0.0), p[3], y);
+    SimulateFirstOrder<T>(*t, *ref, p[0], p[1], p[4], fit_delay ? p[2] : T(0.0), p[3], y);
   }
 };
 
@@ -156,54 +159,60 @@ double RSquared(double rms, const std::vector<double>& m) {
 FirstOrderFit FitFirstOrder(const std::vector<double>& t, const std::vector<double>& ref,
                             const std::vector<double>& angle, const FirstOrderFitSettings& st) {
   CheckLog("FitFirstOrder", t, ref, angle);
-  // Start: grid over tau (d = 0) with (k, y0) by linear least squares: y = k u + y0 v, where
-  // u is the unit-gain response from 0 and v = exp(-(t - t0)/tau) the free response.
-  double best_tau = 0.1, best_k = 1.0, best_y0 = angle[0], best_err = kInf;
-  std::vector<double> u, v(t.size());
-  for (double tau = 0.01; tau < 1.0; tau *= 1.05) {
-    SimulateFirstOrder<double>(t, ref, tau, 1.0, 0.0, 0.0, &u);
-    for (std::size_t i = 0; i < t.size(); ++i) v[i] = std::exp(-(t[i] - t[0]) / tau);
-    double uu = 0, uv = 0, vv = 0, uy = 0, vy = 0;
-    for (std::size_t i = 0; i < t.size(); ++i) {
-      uu += u[i] * u[i];
-      uv += u[i] * v[i];
-      vv += v[i] * v[i];
-      uy += u[i] * angle[i];
-      vy += v[i] * angle[i];
-    }
-    const double det = uu * vv - uv * uv;
-    if (!(std::abs(det) > 1e-300)) continue;
-    const double k = (vv * uy - uv * vy) / det, y0 = (uu * vy - uv * uy) / det;
-    double err = 0.0;
-    for (std::size_t i = 0; i < t.size(); ++i) {
-      const double r = k * u[i] + y0 * v[i] - angle[i];
-      err += r * r;
-    }
-    if (err < best_err) {
-      best_err = err;
-      best_tau = tau;
-      best_k = k;
-      best_y0 = y0;
+  // Start: grid over tau and d with (k, y0, c) by linear least squares: y = k u + y0 v + c w,
+  // u the unit-gain response from 0, v = exp(-(s)/tau) the free response and w = 1 - v the
+  // response to a unit offset (s = t - t0).
+  double best_tau = 0.1, best_d = 0.0, best_err = kInf;
+  Eigen::Vector3d best_x(1.0, angle[0], 0.0);
+  std::vector<double> u;
+  const std::size_t n = t.size();
+  Eigen::MatrixXd A(n, 3);
+  const Eigen::Map<const Eigen::VectorXd> yv(angle.data(), static_cast<Eigen::Index>(n));
+  std::vector<double> delays{0.0};
+  if (st.fit_delay) {
+    for (double d = 0.01; d < st.max_delay; d += 0.01) delays.push_back(d);
+  }
+  for (double d : delays) {
+    for (double tau = 0.01; tau < 1.0; tau *= 1.05) {
+      SimulateFirstOrder<double>(t, ref, tau, 1.0, 0.0, d, 0.0, &u);
+      for (std::size_t i = 0; i < n; ++i) {
+        const double v = std::exp(-(t[i] - t[0]) / tau);
+        A(static_cast<Eigen::Index>(i), 0) = u[i];
+        A(static_cast<Eigen::Index>(i), 1) = v;
+        A(static_cast<Eigen::Index>(i), 2) = 1.0 - v;
+      }
+      const Eigen::Matrix3d AtA = A.transpose() * A;
+      const Eigen::Vector3d x = AtA.ldlt().solve(A.transpose() * yv);
+      if (!x.allFinite()) continue;
+      const double err = (A * x - yv).squaredNorm();
+      if (err < best_err) {
+        best_err = err;
+        best_tau = tau;
+        best_d = d;
+        best_x = x;
+      }
     }
   }
   FirstOrderFit fit;
   fit.noise_sigma = NoiseSigma(angle);
   const FirstOrderSim sim{&t, &ref, st.fit_delay};
-  const double d0 = st.fit_delay ? std::min(0.01, 0.5 * st.max_delay) : 0.0;
-  const std::array<double, 4> p0{best_tau, best_k, d0, best_y0};
-  const std::array<double, 4> lo{1e-3, -10.0, 0.0, -kInf};
-  const std::array<double, 4> hi{10.0, 10.0, st.fit_delay ? st.max_delay : 1.0, kInf};
+  // Delay start inside its range (a start on the bound d = 0 is not differentiable there).
+  const double d0 = st.fit_delay ? std::max(best_d, std::min(0.002, 0.5 * st.max_delay)) : 0.0;
+  const std::array<double, 5> p0{best_tau, best_x[0], d0, best_x[1], best_x[2]};
+  const std::array<double, 5> lo{1e-3, -10.0, 0.0, -kInf, -kInf};
+  const std::array<double, 5> hi{10.0, 10.0, st.fit_delay ? st.max_delay : 1.0, kInf, kInf};
   // Plain least squares first; then a Huber loss at 3x that fit's RMS, which only
   // down-weights real outliers (a scale from the sensor noise alone would also discount
   // the step transitions, where the first-order model cannot follow the loop exactly).
-  const auto r0 = FitTrajectory<4>(sim, angle, p0, lo, hi, 0.0);
+  const auto r0 = FitTrajectory<5>(sim, angle, p0, lo, hi, 0.0);
   const auto r =
-      FitTrajectory<4>(sim, angle, r0.p, lo, hi, 3.0 * std::max(r0.rms, fit.noise_sigma));
+      FitTrajectory<5>(sim, angle, r0.p, lo, hi, 3.0 * std::max(r0.rms, fit.noise_sigma));
   if (!r.converged) throw std::invalid_argument("[FitFirstOrder] the fit did not converge");
   fit.time_constant = r.p[0];
   fit.gain = r.p[1];
   fit.delay = st.fit_delay ? r.p[2] : 0.0;
   fit.initial = r.p[3];
+  fit.offset = r.p[4];
   fit.equivalent_time_constant = fit.time_constant + fit.delay;
   fit.rms = r.rms;
   fit.std_error = r.std_error;
@@ -226,10 +235,15 @@ PdFit FitPdGains(const std::vector<double>& t, const std::vector<double>& ref,
     throw std::invalid_argument("[FitPdGains] the first-order fit is not usable (tau_eq " +
                                 std::to_string(tau) + " s)");
   }
+  // The first-order offset c enters the loop's set point k r + c = k (r + c / k).
+  std::vector<double> ref_c(ref);
+  if (std::abs(fo.gain) > 1e-6) {
+    for (double& r : ref_c) r += fo.offset / fo.gain;
+  }
   // A simulated angle further than this from the data is a diverged loop: rejected.
   double span = 0.0;
   for (std::size_t i = 0; i < t.size(); ++i) {
-    span = std::max({span, std::abs(angle[i] - fo.initial), std::abs(fo.gain * ref[i])});
+    span = std::max({span, std::abs(angle[i] - fo.initial), std::abs(fo.gain * ref_c[i])});
   }
   const double max_abs = std::abs(fo.initial) + 10.0 * span + 1e-3;
   auto finite_error = [&](const std::vector<double>& y) {
@@ -255,7 +269,7 @@ PdFit FitPdGains(const std::vector<double>& t, const std::vector<double>& ref,
     AttitudeLoopSettings sk = st;
     sk.delay = k * h;
     const double lag = tau - sk.delay;
-    const LoopSim sim{&t, &ref, fo.gain, fo.initial, sk};
+    const LoopSim sim{&t, &ref_c, fo.gain, fo.initial, sk};
     for (double kp = 1.0 / (lag * lag); kp < 1e5; kp *= 1.15) {
       const double p[2] = {std::log(kp), std::log(lag * kp)};
       sim(p, &y);
@@ -277,7 +291,7 @@ PdFit FitPdGains(const std::vector<double>& t, const std::vector<double>& ref,
   auto fit_at = [&](int steps, const std::array<double, 2>& p0) {
     AttitudeLoopSettings sk = st;
     sk.delay = steps * h;
-    const LoopSim sim{&t, &ref, fo.gain, fo.initial, sk};
+    const LoopSim sim{&t, &ref_c, fo.gain, fo.initial, sk};
     const auto r0 = FitTrajectory<2>(sim, angle, p0, lo, hi, 0.0, 100, max_abs);
     if (!r0.converged) return r0;
     return FitTrajectory<2>(sim, angle, r0.p, lo, hi, 3.0 * std::max(r0.rms, noise), 100, max_abs);
@@ -314,8 +328,9 @@ PdFit FitPdGains(const std::vector<double>& t, const std::vector<double>& ref,
   AttitudeLoopSettings sk = st;
   sk.delay = fit.delay;
   std::vector<double> yf;
-  SimulateAttitudeLoop<double>(t, ref, fo.gain, fit.kp, fit.kd, fo.initial, sk, &y);
-  SimulateFirstOrder<double>(t, ref, fo.time_constant, fo.gain, fo.delay, fo.initial, &yf);
+  SimulateAttitudeLoop<double>(t, ref_c, fo.gain, fit.kp, fit.kd, fo.initial, sk, &y);
+  SimulateFirstOrder<double>(t, ref, fo.time_constant, fo.gain, fo.offset, fo.delay, fo.initial,
+                             &yf);
   fit.rms_to_first_order = std::sqrt(SumSquares(y, yf) / static_cast<double>(t.size()));
   return fit;
 }

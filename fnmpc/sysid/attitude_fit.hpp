@@ -8,20 +8,24 @@
 
 namespace fnmpc::sysid {
 
-/// First-order closed-loop attitude model of one axis with a transport delay d:
-/// y'(t) = (k r(t - d) - y(t)) / tau, y(t0) = y0, the reference r held between samples.
+/// First-order closed-loop attitude model of one axis with a transport delay d and an
+/// offset c: y'(t) = (k r(t - d) + c - y(t)) / tau, y(t0) = y0, the reference r held between
+/// samples. The offset is a steady attitude bias (c = k b for an autopilot tracking
+/// k (r + b)): without it a biased vehicle's offset would be absorbed into k and y0.
 struct FirstOrderFit {
   double time_constant = 0.0;  ///< tau of the model with delay [s]
   double delay = 0.0;          ///< d [s]
   double gain = 0.0;           ///< k [-]
   double initial = 0.0;        ///< y0 [rad]
+  double offset = 0.0;         ///< c [rad]
   /// tau + d [s]: the delay-free first-order model with the same mean residence time (area
   /// above the normalised step response). This is what the NMPC prediction model uses.
   double equivalent_time_constant = 0.0;
   double rms = 0.0;          ///< RMS residual [rad]
   double noise_sigma = 0.0;  ///< robust noise estimate of the measured angle [rad]
-  /// Standard errors of time_constant, gain, delay, initial (Gauss-Newton covariance).
-  std::array<double, 4> std_error{};
+  /// Standard errors of time_constant, gain, delay, initial, offset (Gauss-Newton
+  /// covariance).
+  std::array<double, 5> std_error{};
   bool delay_at_bound = false;  ///< the delay ended on a bound of its range
   double r_squared = 0.0;       ///< 1 - SS_res / SS_tot of the measured angle
 };
@@ -32,13 +36,14 @@ struct FirstOrderFitSettings {
   double max_delay = 0.1;  ///< upper bound of d [s]
 };
 
-/// Exact response of the first-order model with delay at the sample times `t` (increasing),
-/// for the reference samples `ref` (held constant until the next sample) [rad].
+/// Exact response of the first-order model with delay and offset at the sample times `t`
+/// (increasing), for the reference samples `ref` (held constant until the next sample) [rad].
 template <class T>
 void SimulateFirstOrder(const std::vector<double>& t, const std::vector<double>& ref, const T& tau,
-                        const T& gain, const T& delay, const T& y0, std::vector<T>* y);
+                        const T& gain, const T& offset, const T& delay, const T& y0,
+                        std::vector<T>* y);
 
-/// Fits (tau, k, d, y0) with Ceres (Levenberg-Marquardt, Huber loss of 3 noise sigma on
+/// Fits (tau, k, d, y0, c) with Ceres (Levenberg-Marquardt, Huber loss of 3 noise sigma on
 /// every sample). Starts from a grid over tau with k, y0 by linear least squares. Throws
 /// std::invalid_argument on mismatched sizes, fewer than 20 samples or a constant reference.
 FirstOrderFit FitFirstOrder(const std::vector<double>& t, const std::vector<double>& ref,
@@ -58,7 +63,8 @@ struct AttitudeLoopSettings {
   double delay = 0.0;  ///< transport delay of the reference [s] (the loop sees r(t - delay))
 };
 
-/// Response of the light-weight loop at the sample times `t` from rest at y0 [rad].
+/// Response of the light-weight loop at the sample times `t` from rest at y0 [rad]; the
+/// loop's set point is gain * ref (add offset / gain to ref for an offset).
 template <class T>
 void SimulateAttitudeLoop(const std::vector<double>& t, const std::vector<double>& ref, double gain,
                           const T& kp, const T& kd, double y0, const AttitudeLoopSettings& settings,

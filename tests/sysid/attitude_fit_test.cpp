@@ -23,7 +23,7 @@ TEST(AttitudeFitTest, FirstOrderWithDelayIsRecovered) {
   // Given a first-order response with a 15 ms delay, noise and a few outliers,
   std::vector<double> t, ref, y;
   StepLog(0.1, &t, &ref);
-  SimulateFirstOrder<double>(t, ref, 0.12, 1.02, 0.015, 0.003, &y);
+  SimulateFirstOrder<double>(t, ref, 0.12, 1.02, 0.0, 0.015, 0.003, &y);
   std::mt19937 rng(5);
   std::normal_distribution<double> n(0.0, 0.001);
   for (std::size_t i = 0; i < y.size(); ++i) y[i] += n(rng) + (i % 211 == 7 ? 0.03 : 0.0);
