@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -40,6 +41,16 @@ namespace {
 using config::CsvTable;
 namespace sid = fnmpc::sysid;
 
+/// Variations of the synthetic campaign for the robustness study (docs/sysid.md).
+struct SynthVariation {
+  double delay = 0.0;                    ///< transport delay of every command [s]
+  double log_rate_hz = 250.0;            ///< logging rate of the attitude steps [Hz]
+  double noise_scale = 1.0;              ///< factor on every sensor noise
+  double data_fraction = 1.0;            ///< share of the data (bench, swings, steps, flight)
+  std::string motor_map = "polynomial";  ///< bench map: polynomial or dc (DC motor)
+  bool attitude_bias = false;            ///< fly the attitude steps with the calibration bias
+};
+
 struct SysidOptions {
   std::string campaign;
   std::string output;
@@ -50,12 +61,8 @@ struct SysidOptions {
   std::string tau_convention = "auto";
   std::string synth_dir;
   unsigned seed = 7;
+  SynthVariation variation;
 };
-
-// The vehicle parameters each stage identifies (the keys of the vehicle file it fills).
-const std::vector<std::string> kVehicleKeys{
-    "mass",     "inertia",     "thrust_constant", "torque_constant", "throttle_polynomial",
-    "attitude", "attitude_pd", "arm_length"};
 
 // Keeps the top-level blocks `keep` of a YAML text written by SaveVehicleFile (a block is a
 // line starting at column 1 and the indented lines after it).
@@ -493,31 +500,72 @@ sim::WorldConfig SynthWorld(const model::VehicleParams& v, double z) {
   return w;
 }
 
+// DC motor with winding resistance (e.g. Bangura and Mahony, "Nonlinear dynamic modeling
+// for high performance control of a quadrotor", ACRA 2012): the applied voltage u V drives
+// the back EMF k_e w and the winding loss R i, with i proportional to the load torque
+// T_q w^2, plus a friction/dead-band term: u V = a w^2 + b w + c (w in rpm). Not a
+// polynomial in (thrust, V): w = sqrt(f / T_k).
+struct DcMotorMap {
+  double a = 7.4e-8, b = 8.4e-4, c = 0.4;
+  [[nodiscard]] double Rpm(double u, double voltage) const {
+    const double rhs = u * voltage - c;
+    if (!(rhs > 0.0)) return 0.0;
+    return (-b + std::sqrt(b * b + 4.0 * a * rhs)) / (2.0 * a);
+  }
+};
+
 int RunSynth(const SysidOptions& o) {
   const fs::path dir(o.synth_dir);
   fs::create_directories(dir);
+  const SynthVariation& var = o.variation;
+  if (!(var.log_rate_hz > 0.0) || !(var.noise_scale >= 0.0) || !(var.data_fraction > 0.0) ||
+      var.data_fraction > 1.0 || !(var.delay >= 0.0) ||
+      (var.motor_map != "polynomial" && var.motor_map != "dc")) {
+    throw std::invalid_argument(
+        "sysid synth: need --log-rate > 0, --noise-scale >= 0, 0 < --data-fraction <= 1, "
+        "--delay >= 0, --motor-map polynomial|dc");
+  }
+  const double ns = var.noise_scale, frac = var.data_fraction;
   const model::VehicleParams v = SynthVehicle();
   std::mt19937 rng(o.seed);
   std::normal_distribution<double> normal(0.0, 1.0);
 
-  // Thrust stand: throttle x voltage grid, thrust from the polynomial, noisy sensors.
+  // Thrust stand: throttle x voltage grid, thrust from the polynomial (or the DC motor
+  // map), noisy sensors.
   {
+    const DcMotorMap dc;
     std::vector<double> thr, volt, rpm, thrust, torque;
+    int count = 0;
     for (double V = 14.6; V < 16.85; V += 0.2) {
       for (double u = 0.20; u < 1.001; u += 0.04) {
-        const double f = v.throttle.Thrust(u, V);
+        // Half the data: every other grid point.
+        if (frac < 1.0 && (count++ % static_cast<int>(std::lround(1.0 / frac))) != 0) continue;
+        double f = 0.0, w = 0.0;
+        if (var.motor_map == "dc") {
+          w = dc.Rpm(u, V);
+          f = v.thrust_constant * w * w;
+        } else {
+          f = v.throttle.Thrust(u, V);
+          w = std::sqrt(std::max(f, 0.0) / v.thrust_constant);
+        }
         if (!(f > 0.0)) continue;
-        const double w = std::sqrt(f / v.thrust_constant);
         thr.push_back(u);
-        volt.push_back(V + 0.01 * normal(rng));
-        rpm.push_back(w + 5.0 * normal(rng));
-        thrust.push_back(f * (1.0 + 0.002 * normal(rng)) + 0.01 * normal(rng));
-        torque.push_back(v.torque_constant * w * w * (1.0 + 0.005 * normal(rng)) +
-                         2e-4 * normal(rng));
+        volt.push_back(V + 0.01 * ns * normal(rng));
+        rpm.push_back(w + 5.0 * ns * normal(rng));
+        thrust.push_back(f * (1.0 + 0.002 * ns * normal(rng)) + 0.01 * ns * normal(rng));
+        torque.push_back(v.torque_constant * w * w * (1.0 + 0.005 * ns * normal(rng)) +
+                         2e-4 * ns * normal(rng));
       }
     }
     sysid_report::WriteCsv(dir / "bench.csv", {"throttle", "voltage", "rpm", "thrust", "torque"},
                            {thr, volt, rpm, thrust, torque});
+    if (var.motor_map == "dc") {
+      std::ofstream(dir / "truth_motor.yaml")
+          << "# true throttle map of bench.csv: throttle = (a w^2 + b w + c) / V, "
+             "w = sqrt(f / thrust_constant) [rpm]\n"
+          << fmt::format("a: {}\nb: {}\nc: {}\nthrust_constant: {}\n", dc.a, dc.b, dc.c,
+                         v.thrust_constant);
+    }
   }
   // Pendulum swings: damped oscillation with the formula's period, jittered sample times,
   // white noise and a few spikes.
@@ -527,39 +575,63 @@ int RunSynth(const SysidOptions& o) {
     const double lambda = 0.04, wn = 2.0 * M_PI / period;
     const double wd = std::sqrt(wn * wn - lambda * lambda);
     std::vector<double> t, ang;
-    for (int k = 0; k < 3000; ++k) {
+    const int samples = static_cast<int>(std::lround(3000 * frac));
+    for (int k = 0; k < samples; ++k) {
       const double tk =
           0.01 * k + 0.002 * (std::uniform_real_distribution<double>(0, 1)(rng) - 0.5);
       t.push_back(tk);
-      double y = 0.25 * std::exp(-lambda * tk) * std::cos(wd * tk + 0.3 * a) + 0.002 * normal(rng);
+      double y =
+          0.25 * std::exp(-lambda * tk) * std::cos(wd * tk + 0.3 * a) + 0.002 * ns * normal(rng);
       if (k % 701 == 350) y += 0.05;  // a few outliers
       ang.push_back(y);
     }
     sysid_report::WriteCsv(dir / fmt::format("pendulum_{}.csv", "xyz"[a]), {"t", "angle"},
                            {t, ang});
   }
-  // Attitude steps in hover (nominal vehicle, no calibration bias), 250 Hz log.
+  // Commands reach the world after the transport delay: a queue stepped at physics_dt.
+  struct Delayed {
+    double due;
+    sim::AttitudeCommand command;
+  };
+  auto advance = [&](sim::World& world, std::deque<Delayed>& queue, double duration) {
+    const int steps = static_cast<int>(std::lround(duration / world.physics_dt()));
+    for (int s = 0; s < steps; ++s) {
+      while (!queue.empty() && queue.front().due <= world.time() + 1e-9) {
+        world.SetCommand(0, queue.front().command);
+        queue.pop_front();
+      }
+      world.StepOnce();
+    }
+  };
+  // Attitude steps in hover (nominal vehicle; with --attitude-bias the calibration bias),
+  // logged at --log-rate.
   {
-    model::VehicleParams nominal = v;
-    nominal.bias = {};
-    nominal.has_bias = false;
-    sim::World world(SynthWorld(nominal, 50.0));
+    model::VehicleParams flown = v;
+    if (!var.attitude_bias) {
+      flown.bias = {};
+      flown.has_bias = false;
+    }
+    sim::World world(SynthWorld(flown, 50.0));
     const double weight = v.mass * kGravity;
     world.SetCommand(0, {weight, 0.0, 0.0, 0.0});
     world.Step(0.5);
+    std::deque<Delayed> queue;
     std::vector<std::vector<double>> cols(7);
     const std::array<double, 3> amp{0.10, 0.10, 0.02};
-    double t0 = world.time();
+    const double t0 = world.time(), dt_log = 1.0 / var.log_rate_hz;
+    // Half the data: each level held half as long (0.6 s, still > 5 time constants).
+    const double hold = 1.2 * std::max(frac, 0.5);
     auto run = [&](const Vec3& ref, double duration) {
       const double thrust = weight / (std::cos(ref.x()) * std::cos(ref.y()));
-      world.SetCommand(0, {thrust, ref.x(), ref.y(), ref.z()});
-      const int n = static_cast<int>(std::lround(duration * 250.0));
+      const int n = static_cast<int>(std::lround(duration / dt_log));
       for (int k = 0; k < n; ++k) {
+        if (k == 0)
+          queue.push_back({world.time() + var.delay, {thrust, ref.x(), ref.y(), ref.z()}});
         const sim::TrueState s = world.GetTrueState(0);
         cols[0].push_back(world.time() - t0);
         for (int i = 0; i < 3; ++i) cols[1 + i].push_back(ref[i]);
-        for (int i = 0; i < 3; ++i) cols[4 + i].push_back(s.euler[i] + 0.001 * normal(rng));
-        world.Step(0.004);
+        for (int i = 0; i < 3; ++i) cols[4 + i].push_back(s.euler[i] + 0.001 * ns * normal(rng));
+        advance(world, queue, dt_log);
       }
     };
     run(Vec3::Zero(), 0.4);
@@ -567,7 +639,7 @@ int RunSynth(const SysidOptions& o) {
       for (double sgn : {1.0, 0.0, -1.0, 0.0}) {
         Vec3 ref = Vec3::Zero();
         ref[a] = sgn * amp[a];
-        run(ref, 1.2);
+        run(ref, hold);
       }
     }
     sysid_report::WriteCsv(dir / "attitude_steps.csv",
@@ -577,19 +649,20 @@ int RunSynth(const SysidOptions& o) {
   // attitude doublets and thrust steps on top, commands and measured state logged.
   {
     sim::World world(SynthWorld(v, 50.0));
+    std::deque<Delayed> queue;
     std::vector<std::vector<double>> cols(15);
     const double dt = 0.02, kp = 2.0, kd = 2.5;
-    const int n = 1000;  // 20 s
+    const int n = static_cast<int>(std::lround(1000 * std::max(frac, 0.5)));  // 20 s
     for (int k = 0; k < n; ++k) {
       const double t = k * dt;
       const sim::TrueState s = world.GetTrueState(0);
       Vec<9> z;
       for (int i = 0; i < 3; ++i) {
-        z[i] = s.position[i] + 0.001 * normal(rng);
-        z[3 + i] = s.velocity[i] + 0.01 * normal(rng);
-        z[6 + i] = s.euler[i] + 0.002 * normal(rng);
+        z[i] = s.position[i] + 0.001 * ns * normal(rng);
+        z[3 + i] = s.velocity[i] + 0.01 * ns * normal(rng);
+        z[6 + i] = s.euler[i] + 0.002 * ns * normal(rng);
       }
-      const int leg = static_cast<int>(t / 4.0);
+      const int leg = static_cast<int>(t / (4.0 * std::max(frac, 0.5)));
       const Vec3 target = Vec3(0.0, 0.0, 50.0) +
                           Vec3(leg % 2 ? 1.0 : 0.0, leg >= 2 ? 1.0 : 0.0, leg == 3 ? 0.5 : 0.0);
       const Vec3 acc = kp * (target - z.head<3>()) - kd * z.segment<3>(3);
@@ -609,7 +682,7 @@ int RunSynth(const SysidOptions& o) {
             (phase >= 0.6 && phase < 0.9) ? 1.08 : ((phase >= 1.6 && phase < 1.9) ? 0.92 : 1.0);
       }
       const double yaw_cmd = (t > 10.0 && t < 12.0) ? 0.1 : 0.0;
-      world.SetCommand(0, {thrust, roll, pitch, yaw_cmd});
+      queue.push_back({world.time() + var.delay, {thrust, roll, pitch, yaw_cmd}});
       cols[0].push_back(t);
       for (int i = 0; i < 9; ++i) cols[1 + i].push_back(z[i]);
       cols[10].push_back(thrust);
@@ -617,7 +690,7 @@ int RunSynth(const SysidOptions& o) {
       cols[12].push_back(pitch);
       cols[13].push_back(yaw_cmd);
       cols[14].push_back(s.voltage);
-      world.Step(dt);
+      advance(world, queue, dt);
     }
     sysid_report::WriteCsv(dir / "flight.csv",
                            {"t", "x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw",
@@ -665,6 +738,16 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
       sub->add_subcommand("synth", "Write a synthetic campaign made with the simulator");
   synth->add_option("outdir", o->synth_dir, "output directory")->required();
   synth->add_option("--seed", o->seed, "noise seed");
+  synth->add_option("--delay", o->variation.delay, "transport delay of the commands [s]");
+  synth->add_option("--log-rate", o->variation.log_rate_hz, "attitude step logging rate [Hz]");
+  synth->add_option("--noise-scale", o->variation.noise_scale, "factor on every sensor noise");
+  synth->add_option("--data-fraction", o->variation.data_fraction,
+                    "share of the data to record (0.5: half)");
+  synth->add_option("--motor-map", o->variation.motor_map,
+                    "bench map: polynomial (the vehicle's) or dc (DC motor with winding "
+                    "resistance; truth in truth_motor.yaml)");
+  synth->add_flag("--attitude-bias", o->variation.attitude_bias,
+                  "fly the attitude steps with the calibration bias");
 #endif
   registry.push_back({sub, [o, sub] {
 #if defined(FNMPC_HAVE_SIM)
