@@ -276,6 +276,8 @@ ScenarioConfig ParseScenario(YamlMap map) {
     f.neighbour_timeout = Positive(sm, "neighbour_timeout", f.neighbour_timeout);
     f.neighbour_reacquire_time =
         NonNegative(sm, "neighbour_reacquire_time", f.neighbour_reacquire_time);
+    f.collision_radius = NonNegative(sm, "collision_radius", f.collision_radius);
+    if (f.collision_radius > 10.0) throw sm.ErrorAt("collision_radius", "must be <= 10 m");
     if (sm.Has("recovery")) {
       YamlMap rm = sm.Map("recovery");
       formation::RecoveryConfig& r = f.recovery;

@@ -31,6 +31,8 @@ void SafetyConfig::Validate() const {
     fail("neighbour_timeout must be > 0 and finite");
   if (!(neighbour_reacquire_time >= 0.0) || !std::isfinite(neighbour_reacquire_time))
     fail("neighbour_reacquire_time must be >= 0 and finite");
+  if (!(collision_radius >= 0.0 && collision_radius <= 10.0))
+    fail("collision_radius must be in [0, 10] m");
   recovery.Validate();
 }
 

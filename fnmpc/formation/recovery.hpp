@@ -37,6 +37,9 @@ struct SafetyConfig {
   /// with no gap longer than that.
   double neighbour_timeout = 1.0;
   double neighbour_reacquire_time = 0.5;
+  /// Minimum CoM distance kept to every sensed vehicle (soft constraint in the OCP) [m];
+  /// 0 switches collision avoidance off.
+  double collision_radius = 0.8;
   RecoveryConfig recovery;
 
   /// Throws std::invalid_argument naming the field on an invalid value.
