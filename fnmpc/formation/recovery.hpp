@@ -37,9 +37,9 @@ struct SafetyConfig {
   /// with no gap longer than that.
   double neighbour_timeout = 1.0;
   double neighbour_reacquire_time = 0.5;
-  /// Minimum CoM distance kept to every sensed vehicle (soft constraint in the OCP) [m];
-  /// 0 switches collision avoidance off.
-  double collision_radius = 0.8;
+  /// Minimum CoM distance kept to every sensed vehicle (soft constraint in the OCP) [m]:
+  /// twice the reference vehicle's arm length (0.225 m), rotor hubs apart. 0: off.
+  double collision_radius = 0.45;
   RecoveryConfig recovery;
 
   /// Throws std::invalid_argument naming the field on an invalid value.
