@@ -3,6 +3,8 @@
 // scale from a logged flight by windowed open-loop predictions (docs/sysid.md).
 #include <fmt/core.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -103,12 +105,22 @@ int RunCalibrate(const CalibrateOptions& o) {
                            c);
     sysid_report::Stage stage("calibration");
     stage.ok = true;
-    stage.Param("bias roll", r.bias.roll, r.std_error[0], "rad");
-    stage.Param("bias pitch", r.bias.pitch, r.std_error[1], "rad");
-    stage.Param("thrust scale", r.bias.thrust_scale, r.std_error[2], "-");
+    // The larger of the covariance and the window-bootstrap standard errors.
+    std::array<double, 3> se{};
+    for (int k = 0; k < 3; ++k) {
+      se[k] = std::isfinite(r.bootstrap_std_error[k])
+                  ? std::max(r.std_error[k], r.bootstrap_std_error[k])
+                  : r.std_error[k];
+    }
+    stage.Param("bias roll", r.bias.roll, se[0], "rad");
+    stage.Param("bias pitch", r.bias.pitch, se[1], "rad");
+    stage.Param("thrust scale", r.bias.thrust_scale, se[2], "-");
     stage.residuals = {{"position_error_before", r.position_error_before},
                        {"position_error_after", r.position_error_after},
                        {"rms_scaled", r.rms_scaled},
+                       {"covariance_std_error", r.std_error},
+                       {"bootstrap_std_error", r.bootstrap_std_error},
+                       {"bootstrap_refits", o.settings.bootstrap},
                        {"windows", r.windows}};
     stage.Check("mean position error after / before",
                 r.position_error_after / r.position_error_before, 1.0);
@@ -116,9 +128,9 @@ int RunCalibrate(const CalibrateOptions& o) {
                     fmt::format("roll {:.4f}, pitch {:.4f}, scale {:.4f}", r.bias.roll,
                                 r.bias.pitch, r.bias.thrust_scale));
     stage.Check("abs(thrust scale - 1)", std::abs(r.bias.thrust_scale - 1.0), 0.3);
-    stage.Check("std error of the roll bias [rad]", r.std_error[0], 0.005);
-    stage.Check("std error of the pitch bias [rad]", r.std_error[1], 0.005);
-    stage.Check("std error of the thrust scale", r.std_error[2], 0.01);
+    stage.Check("std error of the roll bias [rad]", se[0], 0.005);
+    stage.Check("std error of the pitch bias [rad]", se[1], 0.005);
+    stage.Check("std error of the thrust scale", se[2], 0.01);
     sane = stage.Passed();
     nlohmann::json j;
     j["kind"] = "calibrate";
@@ -144,8 +156,11 @@ int RunCalibrate(const CalibrateOptions& o) {
              r.bias.thrust_scale);
   fmt::print("  mean position error of the predictions: before {:.4f} m, after {:.4f} m\n",
              r.position_error_before, r.position_error_after);
-  fmt::print("  standard errors: roll {:.2g} rad, pitch {:.2g} rad, thrust {:.2g}\n",
-             r.std_error[0], r.std_error[1], r.std_error[2]);
+  fmt::print(
+      "  standard errors (covariance / window bootstrap): roll {:.2g} / {:.2g} rad, pitch {:.2g} "
+      "/ {:.2g} rad, thrust {:.2g} / {:.2g}\n",
+      r.std_error[0], r.bootstrap_std_error[0], r.std_error[1], r.bootstrap_std_error[1],
+      r.std_error[2], r.bootstrap_std_error[2]);
   fmt::print("  sanity checks {}\n", sane ? "PASS" : "FAIL (see the report)");
   fmt::print("  report: {}\n", final_dir.string());
   return sane ? 0 : 3;
@@ -161,6 +176,9 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
   sub->add_flag("!--no-plots", o->plots, "skip tools/sysid_report.py (CSV dumps only)");
   sub->add_option("--window", o->settings.window, "prediction window [s]");
   sub->add_option("--stride", o->settings.window_stride, "window start spacing [s]");
+  o->settings.bootstrap = 30;
+  sub->add_option("--bootstrap", o->settings.bootstrap,
+                  "refits on resampled windows for the standard errors (0: covariance only)");
   registry.push_back({sub, [o] { return RunCalibrate(*o); }});
 }
 const RegisterCommand kRegistered(&Register);

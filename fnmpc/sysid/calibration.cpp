@@ -4,6 +4,7 @@
 #include <ceres/ceres.h>
 
 #include <cmath>
+#include <random>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -142,25 +143,33 @@ CalibrationResult Calibrate(const model::VehicleParams& params, const FlightLog&
   res.position_error_before = MeanPositionError(log, PredictWindows(params, log, st));
   const auto m = model::AttitudeModelParams::From(params);
   std::array<double, 3> p{params.bias.roll, params.bias.pitch, params.bias.thrust_scale};
-  ceres::Problem problem;
   const std::vector<int> starts = WindowStarts(log, st);
-  for (int s : starts) {
-    const std::size_t end = WindowEnd(log, s, st.window);
-    const int residuals = 5 * static_cast<int>(end - static_cast<std::size_t>(s) - 1);
-    if (residuals <= 0) continue;
-    auto* cost = new ceres::AutoDiffCostFunction<WindowCost, ceres::DYNAMIC, 3>(
-        new WindowCost{&log, s, end, m, st}, residuals);
-    problem.AddResidualBlock(cost, nullptr, p.data());
-    ++res.windows;
-  }
+  // The least-squares problem over the windows `use` (a window may appear several times).
+  auto add_windows = [&](ceres::Problem* problem, const std::vector<int>& use, double* q) {
+    int added = 0;
+    for (int s : use) {
+      const std::size_t end = WindowEnd(log, s, st.window);
+      const int residuals = 5 * static_cast<int>(end - static_cast<std::size_t>(s) - 1);
+      if (residuals <= 0) continue;
+      auto* cost = new ceres::AutoDiffCostFunction<WindowCost, ceres::DYNAMIC, 3>(
+          new WindowCost{&log, s, end, m, st}, residuals);
+      problem->AddResidualBlock(cost, nullptr, q);
+      ++added;
+    }
+    if (added > 0) {
+      problem->SetParameterLowerBound(q, 0, -0.5);
+      problem->SetParameterUpperBound(q, 0, 0.5);
+      problem->SetParameterLowerBound(q, 1, -0.5);
+      problem->SetParameterUpperBound(q, 1, 0.5);
+      problem->SetParameterLowerBound(q, 2, 0.5);
+      problem->SetParameterUpperBound(q, 2, 2.0);
+    }
+    return added;
+  };
+  ceres::Problem problem;
+  res.windows = add_windows(&problem, starts, p.data());
   if (res.windows == 0)
     throw std::invalid_argument("[Calibrate] no prediction window fits the log");
-  problem.SetParameterLowerBound(p.data(), 0, -0.5);
-  problem.SetParameterUpperBound(p.data(), 0, 0.5);
-  problem.SetParameterLowerBound(p.data(), 1, -0.5);
-  problem.SetParameterUpperBound(p.data(), 1, 0.5);
-  problem.SetParameterLowerBound(p.data(), 2, 0.5);
-  problem.SetParameterUpperBound(p.data(), 2, 2.0);
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::DENSE_QR;
   so.max_num_iterations = 50;
@@ -181,6 +190,34 @@ CalibrationResult Calibrate(const model::VehicleParams& params, const FlightLog&
       std::array<double, 9> c{};
       cov.GetCovarianceBlock(p.data(), p.data(), c.data());
       for (int k = 0; k < 3; ++k) res.std_error[k] = std::sqrt(s2 * c[4 * k]);
+    }
+  }
+  // Bootstrap over windows: resample the windows with replacement, refit from the estimate,
+  // standard deviation of the refits. Each window is a 1 s block of the log, so the
+  // bootstrap keeps the correlation inside a window (the covariance above ignores it).
+  if (st.bootstrap > 0 && res.converged && starts.size() > 1) {
+    std::mt19937 rng(st.bootstrap_seed);
+    std::uniform_int_distribution<std::size_t> pick(0, starts.size() - 1);
+    std::vector<std::array<double, 3>> fits;
+    ceres::Solver::Options sb = so;
+    sb.max_num_iterations = 20;
+    for (int b = 0; b < st.bootstrap; ++b) {
+      std::vector<int> use(starts.size());
+      for (int& u : use) u = starts[pick(rng)];
+      std::array<double, 3> q = p;
+      ceres::Problem pb;
+      if (add_windows(&pb, use, q.data()) == 0) continue;
+      ceres::Solver::Summary sum;
+      ceres::Solve(sb, &pb, &sum);
+      if (sum.IsSolutionUsable() && std::isfinite(sum.final_cost)) fits.push_back(q);
+    }
+    if (fits.size() >= 2) {
+      for (int k = 0; k < 3; ++k) {
+        double mean = 0.0, ss = 0.0;
+        for (const auto& f : fits) mean += f[k] / static_cast<double>(fits.size());
+        for (const auto& f : fits) ss += (f[k] - mean) * (f[k] - mean);
+        res.bootstrap_std_error[k] = std::sqrt(ss / static_cast<double>(fits.size() - 1));
+      }
     }
   }
   res.at_bound = std::abs(p[0]) >= 0.5 - 1e-9 || std::abs(p[1]) >= 0.5 - 1e-9 ||

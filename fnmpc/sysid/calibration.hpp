@@ -26,6 +26,8 @@ struct CalibrationSettings {
   int substeps = 2;              ///< RK4 steps per log interval
   double position_scale = 0.01;  ///< position residuals are divided by this [m]
   double angle_scale = 0.005;    ///< roll/pitch residuals are divided by this [rad]
+  int bootstrap = 0;             ///< bootstrap refits over resampled windows (0: none)
+  unsigned bootstrap_seed = 1;   ///< seed of the window resampling
 };
 
 /// One open-loop prediction: from the logged state at `start`, driven by the logged
@@ -47,6 +49,9 @@ struct CalibrationResult {
   /// the residual variance; NaN when it is not computable. The window residuals are
   /// correlated in time, so these are optimistic (a lower bound).
   std::array<double, 3> std_error{kNaN, kNaN, kNaN};
+  /// Standard deviations of (roll, pitch, thrust scale) over `bootstrap` refits on windows
+  /// resampled with replacement (keeps the correlation within a window); NaN without.
+  std::array<double, 3> bootstrap_std_error{kNaN, kNaN, kNaN};
   bool at_bound = false;    ///< an estimate ended on its bound (+-0.5 rad, [0.5, 2])
   double rms_scaled = 0.0;  ///< RMS of the scaled residuals at the solution [-]
 };
