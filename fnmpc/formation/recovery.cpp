@@ -33,6 +33,8 @@ void SafetyConfig::Validate() const {
     fail("neighbour_reacquire_time must be >= 0 and finite");
   if (!(collision_radius >= 0.0 && collision_radius <= 10.0))
     fail("collision_radius must be in [0, 10] m");
+  if (!(injected_failure_rate >= 0.0 && injected_failure_rate <= 1.0))
+    fail("injected_failure_rate must be in [0, 1]");
   recovery.Validate();
 }
 

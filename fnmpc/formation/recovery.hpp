@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
+#include <cmath>
+#include <cstdint>
 #include <string_view>
 
 /// The NMPC's recovery ladder, after PX4's failsafe state machine: explicit states and
@@ -41,10 +43,31 @@ struct SafetyConfig {
   /// twice the reference vehicle's arm length (0.225 m), rotor hubs apart. 0: off.
   double collision_radius = 0.45;
   RecoveryConfig recovery;
+  /// Fault injection (scenario `faults.solver_failures`, docs/scenarios.md), off by default:
+  /// this fraction of NMPC steps is forced to fall back (solution discarded, last command
+  /// held), drawn by InjectedSolverFailure() from `injected_failure_seed` without state.
+  double injected_failure_rate = 0.0;
+  std::uint64_t injected_failure_seed = 0;
 
   /// Throws std::invalid_argument naming the field on an invalid value.
   void Validate() const;
 };
+
+/// Whether the NMPC step of `vehicle` at time t [s] (sample time ts [s]) is a forced
+/// fallback: a counter-based draw (splitmix64 of seed, vehicle and step index), so the
+/// controller needs no random state and `fnmpc run` can count the injections; never
+/// allocates. False whenever injected_failure_rate is 0.
+inline bool InjectedSolverFailure(const SafetyConfig& s, int vehicle, double t, double ts) {
+  if (!(s.injected_failure_rate > 0.0) || !(ts > 0.0) || !std::isfinite(t)) return false;
+  std::uint64_t x = s.injected_failure_seed * 0x9E3779B97F4A7C15ull;
+  x ^= (static_cast<std::uint64_t>(vehicle) + 1) << 40;
+  x ^= static_cast<std::uint64_t>(std::llround(t / ts));
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  x ^= x >> 31;
+  return static_cast<double>(x >> 11) * 0x1.0p-53 < s.injected_failure_rate;
+}
 
 /// What the ladder asks the controller to do this step.
 enum class RecoveryAction : int {

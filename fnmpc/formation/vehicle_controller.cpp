@@ -817,10 +817,20 @@ ControlOutput VehicleController::Step(double t) {
       out.fallback = s.stats.fallback;
       out.status = s.stats.status;
       out.reference = s.reference;
+      // Fault injection (SafetyConfig::injected_failure_rate, 0 = off): a forced fallback
+      // discards the step's solution and holds the last command.
+      const bool injected =
+          InjectedSolverFailure(config_.safety, config_.vehicle, t, config_.rti.sample_time);
+      if (injected) out.fallback = true;
       if (out.fallback) ++fallbacks_;
       thrust = s.u[0];
       roll = s.u[1];
       pitch = s.u[2];
+      if (injected && last_command_.allFinite()) {
+        thrust = last_command_[0];
+        roll = last_command_[1];
+        pitch = last_command_[2];
+      }
       Blend(t, &thrust, &roll, &pitch);
       d = ladder_.Update(t, true, out.fallback);
     } else {
