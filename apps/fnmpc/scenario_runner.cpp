@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <random>
 #include <stdexcept>
 
 #include "fnmpc/core/rotation.hpp"
@@ -68,6 +69,103 @@ struct VehicleLog {
   double touchdown_vz = kNaN, touchdown_time = kNaN;
   double max_thrust_jump_at_switch = kNaN;
   bool motors_off = false;
+  // Per control step in the formation window (followers): time, steady flag, errors to the
+  // neighbours and the neighbours in the cost (fault report: errors after a kill).
+  struct Sample {
+    double t;
+    bool steady;
+    std::array<double, 2> err;
+    int active;
+  };
+  std::vector<Sample> samples;
+};
+
+/// The scenario's faults as `fnmpc run` applies them (config::ScenarioFaults): measurement
+/// filters (dropout windows, outliers) with their own seeded stream, the kill and motors-off
+/// events, and what happened, for the summary's `faults` section.
+class FaultInjector {
+ public:
+  FaultInjector(const config::ScenarioFaults& f, std::uint64_t seed)
+      : f_(f), dropped_(f.sensor_dropouts.size(), 0) {
+    std::seed_seq seq{static_cast<std::uint32_t>(seed), static_cast<std::uint32_t>(seed >> 32),
+                      0xFA17u};
+    rng_.seed(seq);
+  }
+
+  /// False when the measurement is lost (dropout window); adds the outlier error otherwise.
+  bool Filter(Measurement* m) {
+    for (std::size_t w = 0; w < f_.sensor_dropouts.size(); ++w) {
+      const config::SensorDropoutWindow& d = f_.sensor_dropouts[w];
+      if (m->vehicle == d.index && m->kind == d.sensor && m->stamp >= d.from && m->stamp <= d.to) {
+        ++dropped_[w];
+        return false;
+      }
+    }
+    ++measurements_;
+    if (f_.outlier_rate > 0.0 && uniform_(rng_) < f_.outlier_rate) {
+      AddOutlier(m);
+      ++outliers_;
+    }
+    return true;
+  }
+
+  [[nodiscard]] long dropped(std::size_t w) const { return dropped_[w]; }
+  [[nodiscard]] long measurements() const { return measurements_; }
+  [[nodiscard]] long outliers() const { return outliers_; }
+
+ private:
+  /// An error of size s on every channel of the measurement, in the channel's unit: a random
+  /// direction for vectors (norm s), a random sign for scalars.
+  void AddOutlier(Measurement* m) {
+    const double s = f_.outlier_size;
+    auto dir = [this, s] {
+      Vec3 u(normal_(rng_), normal_(rng_), normal_(rng_));
+      const double n = u.norm();
+      return n > 0.0 ? Vec3(s * u / n) : Vec3(s, 0.0, 0.0);
+    };
+    auto signed_size = [this, s] { return uniform_(rng_) < 0.5 ? -s : s; };
+    switch (m->kind) {
+      case SensorKind::kMocapPose:
+        m->position += dir();
+        m->euler += dir();
+        m->euler.z() = WrapAngle(m->euler.z());
+        break;
+      case SensorKind::kImu:
+        m->accel += dir();
+        m->gyro += dir();
+        break;
+      case SensorKind::kOpticalFlow:
+        m->velocity += dir();
+        break;
+      case SensorKind::kCompass:
+        m->yaw = WrapAngle(m->yaw + signed_size());
+        break;
+      case SensorKind::kBattery:
+        m->voltage += signed_size();
+        break;
+      case SensorKind::kRelative: {
+        RelativeObservation& o = m->relative;
+        o.range = std::abs(o.range + signed_size());
+        o.bearing = WrapAngle(o.bearing + signed_size());
+        o.elevation = std::clamp(o.elevation + signed_size(), -M_PI / 2, M_PI / 2);
+        o.relative_yaw = WrapAngle(o.relative_yaw + signed_size());
+        break;
+      }
+    }
+  }
+
+  const config::ScenarioFaults& f_;
+  std::vector<long> dropped_;
+  long measurements_ = 0, outliers_ = 0;
+  std::mt19937_64 rng_;
+  std::normal_distribution<double> normal_{0.0, 1.0};
+  std::uniform_real_distribution<double> uniform_{0.0, 1.0};
+};
+
+/// What happened to a vehicle downed by a fault (first ground contact after the fault).
+struct DownedLog {
+  double impact_time = kNaN, impact_vz = kNaN;
+  Vec3 impact_position = Vec3::Constant(kNaN);
 };
 
 }  // namespace
@@ -194,15 +292,26 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
   const int nv = static_cast<int>(sc.vehicles.size());
   const formation::WaypointTrajectory trajectory = LeaderTrajectory(sc, options.seed);
 
-  // ---- World.
-  sim::World world(WorldConfigFor(sc, options.seed));
+  // ---- World. The autopilots' command-timeout failsafe is on: a vehicle whose controller
+  // stops (fault kill_controller) is landed by its autopilot, as a real one would.
+  sim::WorldConfig world_config = WorldConfigFor(sc, options.seed);
+  world_config.command_timeout.enabled = true;
+  sim::World world(world_config);
+  const config::ScenarioFaults& faults = sc.faults;
+  FaultInjector injector(faults, options.seed);
+  std::vector<char> killed(nv, 0);
+  std::vector<DownedLog> downed(nv);
+  std::vector<double> prev_vz(nv, 0.0);
+  long injected_failures = 0;
 
   // ---- Controllers (a manually moved leader has none).
   std::vector<std::unique_ptr<formation::VehicleController>> ctrl(nv);
   for (int i = 0; i < nv; ++i) {
     if (manual && i == sc.leader) continue;
-    ctrl[i] =
-        std::make_unique<formation::VehicleController>(ControllerConfigFor(sc, i, trajectory));
+    formation::ControllerConfig cc = ControllerConfigFor(sc, i, trajectory);
+    cc.safety.injected_failure_rate = faults.solver_failure_rate;  // 0: off
+    cc.safety.injected_failure_seed = options.seed;
+    ctrl[i] = std::make_unique<formation::VehicleController>(cc);
   }
 
   // ---- Logs.
@@ -235,9 +344,38 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
       world.SetState(sc.leader, sc.manual_start + p, Vec3(0, 0, sc.vehicles[sc.leader].yaw), v,
                      Vec3::Zero());
     }
+    if (faults.motors_off.active() && t >= faults.motors_off.time - 1e-9 &&
+        !world.GetAutopilotStatus(faults.motors_off.index).motors_killed) {
+      world.KillMotors(faults.motors_off.index);
+      if (options.progress) {
+        std::fprintf(stderr, "\n%s t = %.2f s: motors of %s off (fault)\n", options.label.c_str(),
+                     t, sc.vehicles[faults.motors_off.index].name.c_str());
+      }
+    }
+    // A vehicle downed by a fault: its first ground contact (CoM within 1.5 cm of its
+    // resting height), checked every physics step for the vertical speed at contact.
+    for (int i = 0; i < nv; ++i) {
+      const bool downed_by_fault = killed[i] != 0 || (faults.motors_off.index == i &&
+                                                      world.GetAutopilotStatus(i).motors_killed);
+      if (!downed_by_fault || !std::isnan(downed[i].impact_time)) continue;
+      // Contact: the CoM within 1.5 cm of its resting height, or a hard or tilted impact that
+      // the contact stops higher (CoM below 0.3 m above rest, about a tilted foot's reach, and
+      // an upward jump of the vertical speed of more than 0.02 m/s in one 1 ms step: > 2 g of
+      // contact deceleration). The speed is the one just before the contact.
+      const sim::TrueState x = world.GetTrueState(i);
+      const double z = x.position.z() - sim::World::kRestHeight;
+      const bool jump = x.velocity.z() - prev_vz[i] > 0.02;
+      if (z < 0.015 || (z < 0.3 && jump)) {
+        downed[i].impact_time = t;
+        downed[i].impact_vz = std::min(prev_vz[i], x.velocity.z());
+        downed[i].impact_position = x.position;
+      }
+      prev_vz[i] = x.velocity.z();
+    }
     while (world.PopMeasurement(&m)) {
-      for (auto& c : ctrl) {
-        if (c) c->Process(m);
+      if (!injector.Filter(&m)) continue;
+      for (int i = 0; i < nv; ++i) {
+        if (ctrl[i] && !killed[i]) ctrl[i]->Process(m);
       }
     }
     if (step % every == 0) {
@@ -268,7 +406,22 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
         const auto& v = sc.vehicles[i];
         VehicleLog& L = logs[i];
         formation::ControlOutput out;
-        if (ctrl[i]) {
+        if (faults.kill_controller.index == i && !killed[i] &&
+            t >= faults.kill_controller.time - 1e-9) {
+          killed[i] = 1;  // no more Process, Control or SetCommand: the autopilot is alone
+          if (options.progress) {
+            std::fprintf(stderr, "\n%s t = %.2f s: controller of %s killed (fault)\n",
+                         options.label.c_str(), t, v.name.c_str());
+          }
+        }
+        if (killed[i]) {
+          out.time = t;
+          if (std::isnan(L.touchdown_time) && std::isfinite(downed[i].impact_time)) {
+            L.touchdown_time = downed[i].impact_time;
+            L.touchdown_vz = downed[i].impact_vz;
+          }
+          L.motors_off = truth[i].rotor_rpm.norm() < 1.0;
+        } else if (ctrl[i]) {
           out = ctrl[i]->Control(t);
           sim::AttitudeCommand cmd;
           cmd.thrust = out.thrust;
@@ -288,6 +441,8 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
             }
           }
           if (out.nmpc) {
+            if (formation::InjectedSolverFailure(ctrl[i]->config().safety, i, t, sc.sample_time))
+              ++injected_failures;
             ++L.steps;
             if (std::isnan(L.first_step_time)) {
               L.first_step_time = out.solver_time;
@@ -312,6 +467,12 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
             L.touchdown_time = t;
           }
           if (out.phase == FlightPhase::kLanded) L.motors_off = true;
+          // Motors off (fault): its touchdown is the impact, not what its controller sees
+          // after the crash.
+          if (faults.motors_off.index == i && std::isfinite(downed[i].impact_time)) {
+            L.touchdown_time = downed[i].impact_time;
+            L.touchdown_vz = downed[i].impact_vz;
+          }
           prev[i] = out;
         } else {
           out.phase = FlightPhase::kNmpc;
@@ -334,6 +495,7 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
           }
           if (window) L.errors.push_back(ferr);
           if (steady) L.steady_errors.push_back(ferr);
+          if (window) L.samples.push_back({t, steady, err, out.active_neighbours});
         }
         double track = kNaN;
         if (v.leader && leader_ref.allFinite()) {
@@ -350,15 +512,16 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
             "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
             "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
             "{:d},{:.6g},{:.6g},{:.6g},{:.6g},{},{},{:d},{},{:d},{},{:.4f},{:.4f},{},{},{}\n",
-            t, formation::ToString(out.phase), x.position.x(), x.position.y(), x.position.z(),
-            x.velocity.x(), x.velocity.y(), x.velocity.z(), x.euler.x(), x.euler.y(), x.euler.z(),
-            e.position.x(), e.position.y(), e.position.z(), e.velocity.x(), e.velocity.y(),
-            e.velocity.z(), e.euler.x(), e.euler.y(), e.euler.z(), out.thrust, out.throttle,
-            out.roll, out.pitch, out.yaw, out.nmpc_thrust, out.nmpc_roll, out.nmpc_pitch,
-            leader_ref.x(), leader_ref.y(), leader_ref.z(), v.leader ? track : kNaN, rel[0].x(),
-            rel[0].y(), rel[0].z(), est_rel[0].x(), est_rel[0].y(), est_rel[0].z(), err[0],
-            rel[1].x(), rel[1].y(), rel[1].z(), est_rel[1].x(), est_rel[1].y(), est_rel[1].z(),
-            err[1], ferr, steady ? 1 : 0, out.cost, out.kkt, out.solver_time, out.solver_cpu_time,
+            t, killed[i] ? std::string_view("killed") : formation::ToString(out.phase),
+            x.position.x(), x.position.y(), x.position.z(), x.velocity.x(), x.velocity.y(),
+            x.velocity.z(), x.euler.x(), x.euler.y(), x.euler.z(), e.position.x(), e.position.y(),
+            e.position.z(), e.velocity.x(), e.velocity.y(), e.velocity.z(), e.euler.x(),
+            e.euler.y(), e.euler.z(), out.thrust, out.throttle, out.roll, out.pitch, out.yaw,
+            out.nmpc_thrust, out.nmpc_roll, out.nmpc_pitch, leader_ref.x(), leader_ref.y(),
+            leader_ref.z(), v.leader ? track : kNaN, rel[0].x(), rel[0].y(), rel[0].z(),
+            est_rel[0].x(), est_rel[0].y(), est_rel[0].z(), err[0], rel[1].x(), rel[1].y(),
+            rel[1].z(), est_rel[1].x(), est_rel[1].y(), est_rel[1].z(), err[1], ferr,
+            steady ? 1 : 0, out.cost, out.kkt, out.solver_time, out.solver_cpu_time,
             out.sqp_iterations, out.qp_iterations, out.fallback ? 1 : 0, rti::ToString(out.status),
             out.guarded ? 1 : 0, rej, x.voltage, out.voltage, formation::ToString(out.recovery),
             formation::ToString(out.recovery_reason), out.active_neighbours);
@@ -467,6 +630,152 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
     }
     vehicles[v.name] = j;
   }
+  // ---- Faults: what happened, per fault.
+  json fj = json::object();
+  std::vector<std::string> fault_lines;
+  std::vector<int> downed_by;  // vehicles a fault took down (kill, motors off)
+  auto vec2 = [](const Vec3& p) { return p.allFinite() ? json{p.x(), p.y()} : json(nullptr); };
+  if (faults.kill_controller.active()) {
+    const int k = faults.kill_controller.index;
+    downed_by.push_back(k);
+    const sim::AutopilotStatus ap = world.GetAutopilotStatus(k);
+    const bool safe = vehicles[sc.vehicles[k].name].value("landed_safely", false);
+    json j{{"vehicle", sc.vehicles[k].name},
+           {"time_s", faults.kill_controller.time},
+           {"autopilot_failsafe", ap.failsafe},
+           {"autopilot_failsafe_time_s", Num(ap.failsafe_time)},
+           {"autopilot_disarm_time_s", Num(ap.disarm_time)},
+           {"touchdown_time_s", Num(downed[k].impact_time)},
+           {"touchdown_vertical_speed_mps", Num(downed[k].impact_vz)},
+           {"touchdown_position_m", vec2(downed[k].impact_position)},
+           {"autopilot_landed", ap.disarmed_by_failsafe},
+           {"landed_safely", safe}};
+    // The other followers that had it as a neighbour: when it left their cost and their
+    // errors to every neighbour after the kill and after the drop (window, steady state).
+    json others = json::object();
+    for (int i = 0; i < nv; ++i) {
+      const auto& v = sc.vehicles[i];
+      if (i == k || v.leader) continue;
+      bool sees = false;
+      for (const auto& n : v.neighbours) sees = sees || n.index == k;
+      if (!sees) continue;
+      const auto& smp = logs[i].samples;
+      double dropped = kNaN;
+      for (const auto& q : smp) {
+        if (q.t >= faults.kill_controller.time &&
+            q.active < static_cast<int>(v.neighbours.size())) {
+          dropped = q.t;
+          break;
+        }
+      }
+      json errs = json::object();
+      for (std::size_t n = 0; n < v.neighbours.size() && n < 2; ++n) {
+        std::vector<double> after_kill, after_drop, after_kill_all;
+        for (const auto& q : smp) {
+          if (q.t < faults.kill_controller.time) continue;
+          after_kill_all.push_back(q.err[n]);
+          if (q.steady) after_kill.push_back(q.err[n]);
+          if (q.steady && std::isfinite(dropped) && q.t >= dropped) after_drop.push_back(q.err[n]);
+        }
+        errs[v.neighbours[n].vehicle] = {{"mean_after_kill_m", Num(Mean(after_kill_all))},
+                                         {"max_after_kill_m", Num(Max(after_kill_all))},
+                                         {"steady_state_mean_after_kill_m", Num(Mean(after_kill))},
+                                         {"steady_state_mean_after_drop_m", Num(Mean(after_drop))},
+                                         {"steady_state_samples_after_drop", after_drop.size()}};
+      }
+      others[v.name] = {{"dropped_from_cost_s", Num(dropped)}, {"formation_error", errs}};
+      fault_lines.push_back(fmt::format(
+          "fault kill_controller: {} {}", v.name,
+          std::isfinite(dropped) ? fmt::format("dropped {} from its cost at t = {:.2f} s",
+                                               sc.vehicles[k].name, dropped)
+                                 : fmt::format("kept {} in its cost", sc.vehicles[k].name)));
+    }
+    j["followers"] = others;
+    fj["kill_controller"] = j;
+    fault_lines.insert(
+        fault_lines.begin(),
+        fmt::format("fault kill_controller: {} at t = {:.2f} s; autopilot failsafe {}; "
+                    "touchdown {} ; motors {} ; landed safely {}",
+                    sc.vehicles[k].name, faults.kill_controller.time,
+                    ap.failsafe ? fmt::format("at t = {:.2f} s", ap.failsafe_time) : "never",
+                    std::isfinite(downed[k].impact_time)
+                        ? fmt::format("at t = {:.2f} s, v_z {:.2f} m/s, at ({:.2f}, {:.2f}) m",
+                                      downed[k].impact_time, downed[k].impact_vz,
+                                      downed[k].impact_position.x(), downed[k].impact_position.y())
+                        : std::string("none"),
+                    ap.disarmed_by_failsafe ? fmt::format("off at t = {:.2f} s", ap.disarm_time)
+                                            : std::string("not stopped by the autopilot"),
+                    safe));
+  }
+  if (faults.motors_off.active()) {
+    const int k = faults.motors_off.index;
+    downed_by.push_back(k);
+    fj["motors_off"] = {{"vehicle", sc.vehicles[k].name},
+                        {"time_s", faults.motors_off.time},
+                        {"impact_time_s", Num(downed[k].impact_time)},
+                        {"impact_vertical_speed_mps", Num(downed[k].impact_vz)},
+                        {"impact_position_m", vec2(downed[k].impact_position)}};
+    fault_lines.push_back(fmt::format(
+        "fault motors_off: {} at t = {:.2f} s; {}", sc.vehicles[k].name, faults.motors_off.time,
+        std::isfinite(downed[k].impact_time)
+            ? fmt::format(
+                  "hit the ground at t = {:.2f} s with v_z {:.2f} m/s at ({:.2f}, {:.2f}) m",
+                  downed[k].impact_time, downed[k].impact_vz, downed[k].impact_position.x(),
+                  downed[k].impact_position.y())
+            : std::string("did not reach the ground")));
+  }
+  if (!faults.sensor_dropouts.empty()) {
+    json arr = json::array();
+    for (std::size_t w = 0; w < faults.sensor_dropouts.size(); ++w) {
+      const auto& d = faults.sensor_dropouts[w];
+      arr.push_back({{"vehicle", d.vehicle},
+                     {"sensor", std::string(ToString(d.sensor))},
+                     {"from_s", d.from},
+                     {"to_s", d.to},
+                     {"dropped", injector.dropped(w)}});
+      fault_lines.push_back(
+          fmt::format("fault sensor_dropout: {} {} from {:.2f} to {:.2f} s: {} "
+                      "measurements dropped",
+                      d.vehicle, ToString(d.sensor), d.from, d.to, injector.dropped(w)));
+    }
+    fj["sensor_dropouts"] = arr;
+  }
+  if (faults.outlier_rate > 0.0) {
+    fj["outliers"] = {{"rate", faults.outlier_rate},
+                      {"size", faults.outlier_size},
+                      {"measurements", injector.measurements()},
+                      {"corrupted", injector.outliers()}};
+    fault_lines.push_back(fmt::format("fault outliers: {} of {} measurements given an error of {}",
+                                      injector.outliers(), injector.measurements(),
+                                      faults.outlier_size));
+  }
+  if (faults.solver_failure_rate > 0.0) {
+    fj["solver_failures"] = {{"rate", faults.solver_failure_rate},
+                             {"injected", injected_failures},
+                             {"nmpc_steps", nmpc_steps},
+                             {"recoveries", recoveries},
+                             {"failsafes", failsafes}};
+    fault_lines.push_back(fmt::format(
+        "fault solver_failures: {} of {} NMPC steps forced to fall back; {} re-initialisations, "
+        "{} failsafes",
+        injected_failures, nmpc_steps, recoveries, failsafes));
+  }
+  if (faults.any()) {
+    bool others_safe = true;
+    json names = json::array();
+    for (int k : downed_by) names.push_back(sc.vehicles[k].name);
+    for (int i = 0; i < nv; ++i) {
+      if (std::find(downed_by.begin(), downed_by.end(), i) != downed_by.end()) continue;
+      if (!ctrl[i]) continue;  // moved by hand
+      others_safe = others_safe && vehicles[sc.vehicles[i].name].value("landed_safely", false);
+    }
+    fj["downed_vehicles"] = names;
+    fj["landed_safely_except_downed"] = others_safe;
+    for (const std::string& line : fault_lines) {
+      std::fprintf(stderr, "%s %s\n", options.label.c_str(), line.c_str());
+    }
+  }
+
   json s;
   s["scenario"] = sc.name;
   s["seed"] = options.seed;
@@ -492,6 +801,7 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
   s["min_separation_m"] = Num(min_separation);
   s["landed_safely"] = landed_safely;
   s["vehicles"] = vehicles;
+  if (faults.any()) s["faults"] = fj;
   std::ofstream(dir + "/summary.json") << s.dump(2) << "\n";
   return s;
 }

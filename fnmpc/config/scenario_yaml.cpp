@@ -64,6 +64,88 @@ ScenarioWeights ParseWeights(YamlMap m) {
   return w;
 }
 
+/// Index of the vehicle named by `key` of `m`; an error at that key when unknown.
+int VehicleIndex(YamlMap& m, const std::string& key, const ScenarioConfig& s, std::string* name) {
+  *name = m.String(key);
+  for (std::size_t i = 0; i < s.vehicles.size(); ++i) {
+    if (s.vehicles[i].name == *name) return static_cast<int>(i);
+  }
+  throw m.ErrorAt(key, "unknown vehicle '" + *name + "'");
+}
+
+/// A time inside the run, [0, duration) [s].
+double RunTime(YamlMap& m, const std::string& key, const ScenarioConfig& s) {
+  const double t = m.Double(key);
+  if (!(t >= 0.0 && t < s.duration))
+    throw m.ErrorAt(key, "must be in [0, duration) s, got " + std::to_string(t));
+  return t;
+}
+
+double Share(YamlMap& m, const std::string& key) {
+  const double p = m.Double(key);
+  if (!(p >= 0.0 && p <= 1.0)) throw m.ErrorAt(key, "must be in [0, 1], got " + std::to_string(p));
+  return p;
+}
+
+VehicleFault ParseVehicleFault(YamlMap m, const ScenarioConfig& s) {
+  VehicleFault f;
+  f.index = VehicleIndex(m, "vehicle", s, &f.vehicle);
+  f.time = RunTime(m, "time", s);
+  m.Finish();
+  return f;
+}
+
+ScenarioFaults ParseFaults(YamlMap fm, const ScenarioConfig& s) {
+  ScenarioFaults f;
+  if (fm.Has("kill_controller")) {
+    f.kill_controller = ParseVehicleFault(fm.Map("kill_controller"), s);
+    if (s.leader_mode == "manual" && f.kill_controller.index == s.leader) {
+      throw fm.ErrorAt("kill_controller", "the manually moved leader has no controller to kill");
+    }
+  }
+  if (fm.Has("motors_off")) f.motors_off = ParseVehicleFault(fm.Map("motors_off"), s);
+  if (fm.Has("sensor_dropouts")) {
+    for (YamlMap& dm : fm.MapList("sensor_dropouts")) {
+      SensorDropoutWindow w;
+      w.index = VehicleIndex(dm, "vehicle", s, &w.vehicle);
+      const std::string sensor = dm.String("sensor");
+      bool known = false;
+      for (int k = 0; k < kNumSensorKinds; ++k) {
+        if (ToString(static_cast<SensorKind>(k)) == sensor) {
+          w.sensor = static_cast<SensorKind>(k);
+          known = true;
+        }
+      }
+      if (!known) {
+        throw dm.ErrorAt(
+            "sensor",
+            "must be mocap, imu, optical_flow, compass, battery or relative, got '" + sensor + "'");
+      }
+      w.from = RunTime(dm, "from", s);
+      w.to = dm.Double("to");
+      if (!(w.to > w.from) || !std::isfinite(w.to))
+        throw dm.ErrorAt("to", "must be finite and after 'from', got " + std::to_string(w.to));
+      dm.Finish();
+      f.sensor_dropouts.push_back(w);
+    }
+  }
+  if (fm.Has("outliers")) {
+    YamlMap om = fm.Map("outliers");
+    f.outlier_rate = Share(om, "rate");
+    f.outlier_size = om.Double("size");
+    if (!(f.outlier_size > 0.0) || !std::isfinite(f.outlier_size))
+      throw om.ErrorAt("size", "must be > 0 and finite, got " + std::to_string(f.outlier_size));
+    om.Finish();
+  }
+  if (fm.Has("solver_failures")) {
+    YamlMap sm = fm.Map("solver_failures");
+    f.solver_failure_rate = Share(sm, "rate");
+    sm.Finish();
+  }
+  fm.Finish();
+  return f;
+}
+
 }  // namespace
 
 ScenarioConfig ParseScenario(YamlMap map) {
@@ -296,6 +378,9 @@ ScenarioConfig ParseScenario(YamlMap map) {
     }
     sm.Finish();
   }
+
+  // ---- Faults (after the vehicles, the leader mode and the duration they refer to).
+  if (map.Has("faults")) s.faults = ParseFaults(map.Map("faults"), s);
 
   if (map.Has("metrics")) {
     YamlMap mm = map.Map("metrics");

@@ -44,6 +44,37 @@ struct ScenarioWeights {
   double attitude = 1.0, thrust = 0.05, attitude_ref = 5.0, terminal_factor = 5.0;
 };
 
+/// A fault that downs one vehicle at a time (`faults.kill_controller`, `faults.motors_off`).
+struct VehicleFault {
+  std::string vehicle;  ///< name; empty: no such fault
+  int index = -1;       ///< resolved index into ScenarioConfig::vehicles; -1: none
+  double time = kNaN;   ///< when it happens [s]
+  [[nodiscard]] bool active() const { return index >= 0; }
+};
+
+/// A window in which one sensor of one vehicle delivers nothing (`faults.sensor_dropouts`).
+struct SensorDropoutWindow {
+  std::string vehicle;
+  int index = -1;
+  SensorKind sensor = SensorKind::kMocapPose;
+  double from = 0.0, to = 0.0;  ///< stamps in [from, to] are dropped [s]
+};
+
+/// The scenario's `faults:` block (docs/scenarios.md), applied by `fnmpc run`; all off by
+/// default. Randomness (outliers, solver failures) is drawn from the run's seed.
+struct ScenarioFaults {
+  VehicleFault kill_controller;  ///< the vehicle's controller stops; its autopilot lands it
+  VehicleFault motors_off;       ///< the vehicle's motors stop; it falls
+  std::vector<SensorDropoutWindow> sensor_dropouts;
+  double outlier_rate = 0.0;         ///< share of all measurements given an outlier, [0, 1]
+  double outlier_size = 0.0;         ///< its size in the sensor's units (m, rad, m/s, ...)
+  double solver_failure_rate = 0.0;  ///< share of NMPC steps forced to fall back, [0, 1]
+  [[nodiscard]] bool any() const {
+    return kill_controller.active() || motors_off.active() || !sensor_dropouts.empty() ||
+           outlier_rate > 0.0 || solver_failure_rate > 0.0;
+  }
+};
+
 /// The whole scenario.
 struct ScenarioConfig {
   std::string name;
@@ -76,6 +107,7 @@ struct ScenarioConfig {
   double thrust_min = 5.0, thrust_max = 25.0, max_attitude_ref = 0.35, max_speed = 2.0;
   bool use_throttle = true;
   formation::SafetyConfig safety;  ///< block `safety:` (see formation::SafetyConfig)
+  ScenarioFaults faults;           ///< block `faults:` (fault injection of `fnmpc run`)
   // Phases.
   double takeoff_time = 1.0, takeoff_height = 1.0, climb_speed = 0.5, hover_before_switch = 1.5;
   double blend_time = 0.5, landing_time = 50.0, descent_speed = 0.3;

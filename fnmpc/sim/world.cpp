@@ -162,6 +162,22 @@ void WorldConfig::Validate() const {
           "[World] wind gust_std must be >= 0, got " + std::to_string(wind.gust_std));
   Require(wind.gust_time_constant > 0.0, "[World] wind gust_time_constant must be > 0, got " +
                                              std::to_string(wind.gust_time_constant));
+  {
+    const CommandTimeoutSettings& c = command_timeout;
+    Require(c.timeout > 0.0 && std::isfinite(c.timeout),
+            "[World] command_timeout.timeout must be > 0, got " + std::to_string(c.timeout));
+    Require(c.descent_speed > 0.0 && std::isfinite(c.descent_speed),
+            "[World] command_timeout.descent_speed must be > 0, got " +
+                std::to_string(c.descent_speed));
+    Require(c.velocity_gain > 0.0 && std::isfinite(c.velocity_gain),
+            "[World] command_timeout.velocity_gain must be > 0, got " +
+                std::to_string(c.velocity_gain));
+    Require(c.land_speed > 0.0 && std::isfinite(c.land_speed),
+            "[World] command_timeout.land_speed must be > 0, got " + std::to_string(c.land_speed));
+    Require(c.land_detect_time >= 0.0 && std::isfinite(c.land_detect_time),
+            "[World] command_timeout.land_detect_time must be >= 0, got " +
+                std::to_string(c.land_detect_time));
+  }
   for (std::size_t i = 0; i < vehicles.size(); ++i) {
     const std::string who = "vehicle " + std::to_string(i);
     const VehicleSpec& v = vehicles[i];
@@ -248,6 +264,9 @@ struct Vehicle {
   Vec3 v_prev = Vec3::Zero();
   Vec3 accel = Vec3::Zero();
   Vec3 aero_force = Vec3::Zero(), aero_torque = Vec3::Zero();
+  AutopilotStatus status;
+  double failsafe_yaw = 0.0;  // yaw held by the command-timeout failsafe [rad]
+  double land_timer = 0.0;    // land detector: time with the conditions met [s]
   std::array<std::int64_t, kNumSensorKinds> sample_index{};
   std::mt19937_64 rng;
   std::normal_distribution<double> normal{0.0, 1.0};
@@ -310,10 +329,54 @@ struct World::Impl {
     if (d == nullptr) throw std::runtime_error("[World] mj_makeData failed");
   }
 
+  /// Command-timeout failsafe (CommandTimeoutSettings): engages on a stale command stream
+  /// of an armed vehicle, then replaces the command by level attitude and a vertical-speed
+  /// loop to the descent speed; the land detector disarms.
+  void CommandTimeout(Vehicle& v) {
+    const CommandTimeoutSettings& c = config.command_timeout;
+    AutopilotStatus& st = v.status;
+    const double t = Time();
+    if (!c.enabled || v.direct || st.motors_killed || st.disarmed_by_failsafe) return;
+    if (!st.failsafe) {
+      if (!st.armed || !std::isfinite(st.last_command_time) ||
+          t - st.last_command_time <= c.timeout + kTimeEps) {
+        return;
+      }
+      st.failsafe = true;
+      st.failsafe_time = t;
+      v.failsafe_yaw = EulerOf(Rotation(v)).z();
+      v.land_timer = 0.0;
+    }
+    const Mat3 r = Rotation(v);
+    const double vz = Velocity(v).z();
+    const double accel = c.velocity_gain * (-c.descent_speed - vz);  // about hover [m/s^2]
+    const double tilt = std::max(0.5, r(2, 2));                      // cos roll cos pitch
+    AttitudeCommand cmd;
+    cmd.thrust = std::max(0.0, v.params.mass * (config.gravity + accel) / tilt);
+    cmd.yaw = v.failsafe_yaw;
+    if (std::abs(vz) < c.land_speed && accel < 0.0) {
+      v.land_timer += 1.0 / config.autopilot_rate_hz;
+    } else {
+      v.land_timer = 0.0;
+    }
+    if (v.land_timer >= c.land_detect_time - kTimeEps) {
+      st.disarmed_by_failsafe = true;
+      st.disarm_time = t;
+      cmd.thrust = 0.0;
+    }
+    v.command = cmd;
+  }
+
   void Autopilot(Vehicle& v) {
     const model::VehicleParams& p = v.params;
     const double volt = v.voltage;
     Vec4 f_ss;
+    if (v.status.motors_killed) {
+      v.throttle.setZero();
+      v.rpm_target.setZero();
+      return;
+    }
+    CommandTimeout(v);
     // Collective thrust [N]: from the throttle command through the polynomial at the
     // present voltage when it is set, else the thrust command.
     double commanded = v.command.thrust;
@@ -321,6 +384,7 @@ struct World::Impl {
       const double thr = std::clamp(v.command.throttle, 0.0, 1.0);
       commanded = 4.0 * ThrustForThrottle(p.throttle, thr, volt, &v.collective_guess);
     }
+    v.status.armed = v.direct || commanded > 0.0;
     if (!v.direct && !(commanded > 0.0)) {
       // Zero thrust command: the autopilot idles the motors (as a disarmed vehicle).
       v.throttle.setZero();
@@ -516,6 +580,7 @@ struct World::Impl {
       Vehicle& v = vehicles[i];
       const model::VehicleParams& p = v.params;
       v.rpm += motor_alpha * (v.rpm_target - v.rpm);
+      if (v.status.motors_killed) v.rpm.setZero();
       UpdateBattery(v);
       Vec3 torque_b = Vec3::Zero();
       double thrust = 0.0;
@@ -628,8 +693,28 @@ void CheckIndex(int vehicle, int n) {
 void World::SetCommand(int vehicle, const AttitudeCommand& command) {
   CheckIndex(vehicle, num_vehicles());
   Vehicle& v = impl_->vehicles[vehicle];
+  // Latched failsafe or killed motors: the autopilot no longer listens.
+  if (v.status.failsafe || v.status.motors_killed) return;
   v.direct = false;
   v.command = command;
+  v.status.last_command_time = impl_->Time();
+}
+
+void World::KillMotors(int vehicle) {
+  CheckIndex(vehicle, num_vehicles());
+  Vehicle& v = impl_->vehicles[vehicle];
+  if (v.status.motors_killed) return;
+  v.status.motors_killed = true;
+  v.status.motors_killed_time = impl_->Time();
+  v.status.armed = false;
+  v.throttle.setZero();
+  v.rpm.setZero();
+  v.rpm_target.setZero();
+}
+
+AutopilotStatus World::GetAutopilotStatus(int vehicle) const {
+  CheckIndex(vehicle, num_vehicles());
+  return impl_->vehicles[vehicle].status;
 }
 
 void World::SetThrottles(int vehicle, const Vec4& throttles) {

@@ -66,6 +66,37 @@ struct WindSettings {
   double gust_time_constant = 2.0;  ///< correlation time [s], > 0
 };
 
+/// Command-timeout failsafe of the emulated autopilot, after the common autopilot behaviour
+/// on a lost offboard link (PX4 offboard mode: with no new setpoint for COM_OF_LOSS_T the
+/// vehicle leaves offboard and runs the failsafe action of COM_OBL_ACT, e.g. Land; without a
+/// position estimate Land becomes Descend: level attitude and a slow descent; the land
+/// detector then disarms). Armed vehicle (last command with a thrust or throttle above idle),
+/// no SetCommand for `timeout`: roll and pitch 0, yaw held, collective thrust from a
+/// vertical-speed loop to -descent_speed; once the vertical speed stays below
+/// `land_speed` with the loop asking for less than hover thrust for `land_detect_time`, the
+/// motors stop (disarmed) and stay off. Latched: later commands are ignored, as the real
+/// autopilot needs an operator's mode switch to leave the failsafe.
+struct CommandTimeoutSettings {
+  bool enabled = false;           ///< off by default (tests drive the autopilot by hand)
+  double timeout = 1.0;           ///< no command this long -> failsafe [s]
+  double descent_speed = 0.7;     ///< [m/s] (PX4 MPC_LAND_SPEED default 0.7 m/s)
+  double velocity_gain = 2.0;     ///< vertical-speed loop gain [1/s]
+  double land_speed = 0.1;        ///< land detector: |v_z| below this [m/s]
+  double land_detect_time = 1.0;  ///< ... for this long -> motors off [s]
+};
+
+/// What the emulated autopilot is doing (World::GetAutopilotStatus).
+struct AutopilotStatus {
+  bool armed = false;           ///< last command above idle (or direct throttles)
+  bool failsafe = false;        ///< command-timeout failsafe engaged
+  double failsafe_time = kNaN;  ///< when it engaged [s]
+  bool disarmed_by_failsafe = false;
+  double disarm_time = kNaN;   ///< land detector stopped the motors [s]
+  bool motors_killed = false;  ///< KillMotors() (fault injection)
+  double motors_killed_time = kNaN;
+  double last_command_time = kNaN;  ///< time of the last SetCommand [s]
+};
+
 /// Everything the world is built from.
 struct WorldConfig {
   std::vector<VehicleSpec> vehicles;
@@ -82,7 +113,8 @@ struct WorldConfig {
   BatterySettings battery;
   DownwashSettings downwash;
   WindSettings wind;
-  std::uint64_t seed = 1;  ///< all noise, dropouts and gusts derive from it
+  CommandTimeoutSettings command_timeout;  ///< autopilot failsafe on a lost command stream
+  std::uint64_t seed = 1;                  ///< all noise, dropouts and gusts derive from it
 
   /// Throws std::invalid_argument with context on a bad value (also checks each
   /// vehicle's params and sensors).
@@ -129,6 +161,9 @@ class World {
   void SetCommand(int vehicle, const AttitudeCommand& command);
   /// Bypasses the autopilot: the four throttles (clamped to [0, 1]) go straight to the ESCs.
   void SetThrottles(int vehicle, const Vec4& throttles);
+  /// Fault injection: the motors of `vehicle` stop now and for good (rotor speeds and
+  /// thrust zero from this step, no spin-down lag; commands are ignored).
+  void KillMotors(int vehicle);
   /// Teleports `vehicle` (CoM position [m], Euler [rad]) with zero velocity; for tests
   /// and scenario resets. Rotor speeds and battery are kept.
   void SetPose(int vehicle, const Vec3& position, const Vec3& euler);
@@ -147,6 +182,8 @@ class World {
   /// Measurements generated but not yet popped (delivered or still in flight).
   [[nodiscard]] std::size_t queued_measurements() const;
 
+  /// State of the emulated autopilot of `vehicle` (failsafe, disarm, killed motors).
+  [[nodiscard]] AutopilotStatus GetAutopilotStatus(int vehicle) const;
   /// Ground truth of `vehicle` at time().
   [[nodiscard]] TrueState GetTrueState(int vehicle) const;
   /// Simulation time [s].

@@ -1,0 +1,221 @@
+#!/usr/bin/python3
+# SPDX-License-Identifier: BSD-3-Clause
+"""Fault campaign: randomized fault runs of the triangle with `fnmpc run`, table per fault kind.
+
+  /usr/bin/python3 scripts/fault-campaign.py [--fnmpc build/apps/fnmpc/fnmpc] [--runs 210]
+      [--seed 1] [--duration 30] [--out DIR] [--keep]
+
+A seeded RNG (--seed) draws, per run, one fault kind (round robin over KINDS, so every kind
+gets the same share) and its parameters: vehicle, time inside the NMPC flight, dropout windows,
+rates and sizes, and the run's noise seed. Each variant is the triangle scenario
+(config/scenarios/triangle.yaml, shortened with --duration) with a `faults:` block
+(docs/scenarios.md), written to a temporary folder and flown with `fnmpc run -q`.
+
+Per run it checks: the process exited 0 (else: crash), no non-finite command (thrust, roll,
+pitch, yaw) in any CSV row of a vehicle whose controller is alive, and every vehicle either
+landed safely (summary.json `landed_safely`) or is the one the fault downed
+(`faults.downed_vehicles`: kill_controller and motors_off targets). It prints the markdown
+table of docs/results.md ("Faults and safety", fault campaign) and exits 1 when a run failed
+a check.
+"""
+import argparse
+import csv
+import glob
+import json
+import math
+import os
+import random
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+import yaml
+
+KINDS = ["kill_controller", "motors_off", "sensor_dropouts", "outliers", "solver_failures",
+         "mixed"]
+SENSORS = ["mocap", "imu", "optical_flow", "compass", "battery", "relative"]
+COMMAND_COLUMNS = ("cmd_thrust", "cmd_roll", "cmd_pitch", "cmd_yaw")
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def flight_window(sc, duration):
+    """Times [s] in which every vehicle flies the NMPC in the shortened scenario."""
+    ph = sc.get("phases", {})
+    start = (ph.get("takeoff_time", 1.0) + ph.get("takeoff_height", 1.0) / ph.get("climb_speed", 0.5)
+             + ph.get("hover_before_switch", 1.5) + ph.get("blend_time", 0.5) + 0.5)
+    return start, duration - 7.0  # fnmpc run --duration lands at duration - 7 s
+
+
+def draw_faults(rng, kind, names, t0, t1):
+    def dropouts(n):
+        out = []
+        for _ in range(n):
+            a = rng.uniform(t0, t1 - 0.2)
+            out.append({"vehicle": rng.choice(names), "sensor": rng.choice(SENSORS),
+                        "from": round(a, 3), "to": round(a + rng.uniform(0.2, 3.0), 3)})
+        return out
+
+    f = {}
+    if kind in ("kill_controller", "motors_off"):
+        f[kind] = {"vehicle": rng.choice(names), "time": round(rng.uniform(t0, t1), 3)}
+    elif kind == "sensor_dropouts":
+        f["sensor_dropouts"] = dropouts(rng.randint(1, 3))
+    elif kind == "outliers":
+        f["outliers"] = {"rate": round(rng.uniform(0.001, 0.05), 4),
+                         "size": round(rng.uniform(0.05, 1.0), 3)}
+    elif kind == "solver_failures":
+        f["solver_failures"] = {"rate": round(rng.uniform(0.05, 0.5), 3)}
+    else:  # mixed: dropouts, outliers and solver failures together
+        f["sensor_dropouts"] = dropouts(rng.randint(1, 2))
+        f["outliers"] = {"rate": round(rng.uniform(0.001, 0.02), 4),
+                         "size": round(rng.uniform(0.05, 0.5), 3)}
+        f["solver_failures"] = {"rate": round(rng.uniform(0.05, 0.3), 3)}
+    return f
+
+
+def csv_stats(run_dir):
+    out = {"nan_commands": 0, "zmax": 0.0, "dmax": 0.0}
+    for path in sorted(glob.glob(os.path.join(run_dir, "*.csv"))):
+        with open(path, newline="") as f:
+            rows = list(csv.DictReader(f))
+        if not rows:
+            continue
+        x0, y0 = float(rows[0]["x"]), float(rows[0]["y"])
+        for r in rows:
+            out["zmax"] = max(out["zmax"], float(r["z"]))
+            out["dmax"] = max(out["dmax"], math.hypot(float(r["x"]) - x0, float(r["y"]) - y0))
+            if r["phase"] != "killed" and not all(math.isfinite(float(r[c]))
+                                                  for c in COMMAND_COLUMNS):
+                out["nan_commands"] += 1
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--fnmpc", default=os.path.join(ROOT, "build/apps/fnmpc/fnmpc"))
+    ap.add_argument("--scenario", default=os.path.join(ROOT, "config/scenarios/triangle.yaml"))
+    ap.add_argument("--runs", type=int, default=210)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--duration", type=float, default=30.0, help="fnmpc run --duration [s]")
+    ap.add_argument("--out", default="", help="run folders (default: a temporary folder)")
+    ap.add_argument("--keep", action="store_true", help="keep the temporary folder")
+    a = ap.parse_args()
+    if a.runs < 1:
+        ap.error("--runs must be >= 1")
+    with open(a.scenario) as f:
+        base = yaml.safe_load(f)
+    sdir = os.path.dirname(os.path.abspath(a.scenario))
+    for key in ("vehicle_file", "sensors_file"):
+        if key in base:
+            base[key] = os.path.normpath(os.path.join(sdir, base[key]))
+    for v in base["vehicles"]:
+        for key in ("vehicle_file", "sensors_file"):
+            if key in v:
+                v[key] = os.path.normpath(os.path.join(sdir, v[key]))
+    names = [v["name"] for v in base["vehicles"]]
+    t0, t1 = flight_window(base, a.duration)
+    rng = random.Random(a.seed)
+    work = a.out or tempfile.mkdtemp(prefix="fnmpc-fault-campaign-")
+    os.makedirs(work, exist_ok=True)
+    stats = {k: {"runs": 0, "crashes": 0, "nan": 0, "safe": 0, "others": 0, "downed": 0,
+                 "downed_safe": 0, "fell": 0, "fallbacks": 0, "injected": 0, "reinits": 0,
+                 "failsafes": 0, "dropped": 0, "outliers": 0, "zmax": 0.0, "dmax": 0.0,
+                 "minsep": math.inf, "bad": 0, "impact": []} for k in KINDS}
+    failures = []
+    started = time.time()
+    for r in range(a.runs):
+        kind = KINDS[r % len(KINDS)]
+        faults = draw_faults(rng, kind, names, t0, t1)
+        seed = rng.randint(1, 10**6)
+        sc = dict(base, name=f"fault-{r:03d}-{kind}", faults=faults)
+        path = os.path.join(work, f"fault-{r:03d}.yaml")
+        with open(path, "w") as f:
+            yaml.safe_dump(sc, f, sort_keys=False)
+        out = os.path.join(work, f"run-{r:03d}")
+        cmd = [a.fnmpc, "run", path, "-q", "--seed", str(seed), "--duration", str(a.duration),
+               "-o", out]
+        p = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        st = stats[kind]
+        st["runs"] += 1
+        if p.returncode != 0:
+            st["crashes"] += 1
+            st["bad"] += 1
+            failures.append(f"run {r} ({kind}, seed {seed}): exit {p.returncode}: "
+                            f"{p.stderr.strip()[-300:]}")
+            continue
+        with open(os.path.join(out, "run-01", "summary.json")) as f:
+            s = json.load(f)
+        c = csv_stats(os.path.join(out, "run-01"))
+        fj = s.get("faults", {})
+        downed = set(fj.get("downed_vehicles", []))
+        ok = c["nan_commands"] == 0
+        for name, v in s["vehicles"].items():
+            if name in downed:
+                st["downed"] += 1
+                st["downed_safe"] += bool(v.get("landed_safely"))
+                continue
+            st["others"] += 1
+            st["safe"] += bool(v.get("landed_safely"))
+            ok = ok and bool(v.get("landed_safely"))
+        if "motors_off" in fj:
+            st["fell"] += 1
+            if fj["motors_off"].get("impact_vertical_speed_mps") is not None:
+                st["impact"].append(fj["motors_off"]["impact_vertical_speed_mps"])
+        st["nan"] += c["nan_commands"]
+        st["fallbacks"] += int(s.get("fallbacks") or 0)
+        st["reinits"] += int(s.get("recoveries") or 0)
+        st["failsafes"] += int(s.get("failsafes") or 0)
+        st["injected"] += int(fj.get("solver_failures", {}).get("injected", 0))
+        st["dropped"] += sum(int(w["dropped"]) for w in fj.get("sensor_dropouts", []))
+        st["outliers"] += int(fj.get("outliers", {}).get("corrupted", 0))
+        st["zmax"] = max(st["zmax"], c["zmax"])
+        st["dmax"] = max(st["dmax"], c["dmax"])
+        if s.get("min_separation_m") is not None:
+            st["minsep"] = min(st["minsep"], s["min_separation_m"])
+        if not ok:
+            st["bad"] += 1
+            failures.append(f"run {r} ({kind}, seed {seed}): faults {json.dumps(faults)}; "
+                            f"non-finite commands {c['nan_commands']}; landed safely: " +
+                            ", ".join(f"{n} {v.get('landed_safely')}"
+                                      for n, v in s["vehicles"].items()))
+        print(f"fault-campaign: run {r + 1}/{a.runs} {kind} {'ok' if ok else 'FAILED'} "
+              f"({time.time() - started:.0f} s)", file=sys.stderr, flush=True)
+    print("| fault kind | runs | crashes | non-finite commands | other vehicles landed safely | "
+          "downed vehicles: autopilot-landed safely / fell (impact v_z [m/s]) | injected solver "
+          "failures | fallbacks | re-inits | failsafes | dropped / outlier measurements | "
+          "max z [m] | max distance from start [m] | min separation [m] | runs failing a check |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    tot = {"runs": 0, "bad": 0}
+    for k in KINDS:
+        st = stats[k]
+        if st["runs"] == 0:
+            continue
+        tot["runs"] += st["runs"]
+        tot["bad"] += st["bad"]
+        downed = "–"
+        if st["downed"]:
+            fell = st["fell"]
+            imp = (f" ({min(st['impact']):.1f} to {max(st['impact']):.1f})"
+                   if st["impact"] else "")
+            downed = f"{st['downed_safe']}/{st['downed']} / {fell}{imp}"
+        print(f"| {k} | {st['runs']} | {st['crashes']} | {st['nan']} | "
+              f"{st['safe']}/{st['others']} | {downed} | {st['injected']} | {st['fallbacks']} | "
+              f"{st['reinits']} | {st['failsafes']} | {st['dropped']} / {st['outliers']} | "
+              f"{st['zmax']:.2f} | {st['dmax']:.2f} | "
+              f"{st['minsep'] if math.isinf(st['minsep']) else round(st['minsep'], 2)} | "
+              f"{st['bad']} |")
+    print(f"\n{tot['runs']} runs, {tot['bad']} failing a check, wall time "
+          f"{time.time() - started:.0f} s", file=sys.stderr)
+    for line in failures:
+        print("fault-campaign: " + line, file=sys.stderr)
+    if not a.out and not a.keep:
+        shutil.rmtree(work, ignore_errors=True)
+    elif not a.out:
+        print(f"fault-campaign: runs kept in {work}", file=sys.stderr)
+    return 1 if tot["bad"] else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
