@@ -8,6 +8,7 @@
 
 #include "fnmpc/core/stopwatch.hpp"
 #include "fnmpc/formation/throttle_map.hpp"
+#include "fnmpc/ocp/problem_extensions.hpp"
 
 namespace fnmpc::formation {
 
@@ -77,6 +78,9 @@ struct NeighbourState {
   double yaw_rate = 0.0;        // [rad/s]
 };
 
+/// Obstacle slots of the controllers' OCPs (the nearest sensed vehicles).
+constexpr int kObstacleSlots = 4;
+
 /// One NMPC step's inputs: own estimate and neighbour estimates.
 struct NmpcInput {
   double t = 0.0;
@@ -85,6 +89,11 @@ struct NmpcInput {
   double height = kNaN;          // follower: current height of the CoM [m] (NaN: unknown)
   std::array<NeighbourState, 2> neighbours{};
   std::array<bool, 2> active{true, true};  // follower: neighbour j in the cost
+  Vec3 last_command = Vec3::Zero();        // (thrust, roll, pitch) last applied
+  // Collision avoidance: the nearest sensed vehicles, relative position (p_o - p_self) and
+  // velocity; slots beyond `obstacles` are unused.
+  std::array<Vec3, kObstacleSlots> obstacle_rel{}, obstacle_vel{};
+  int obstacles = 0;
 };
 
 struct NmpcStep {
@@ -141,18 +150,25 @@ void InputBounds(const ControllerConfig& c, Solver* s) {
 // input bounds stay hard.
 class LeaderCore final : public NmpcCore {
  public:
-  using Solver = rti::RtiSolver<ocp::LeaderProblem>;
+  using Problem = ocp::WithInputRate<ocp::WithObstacles<ocp::LeaderProblem, kObstacleSlots>>;
+  using Solver = rti::RtiSolver<Problem>;
+  using Base = ocp::WithObstacles<ocp::LeaderProblem, kObstacleSlots>;
   explicit LeaderCore(const ControllerConfig& c)
       : c_(c),
-        solver_(ocp::LeaderProblem{model::AttitudeModelParams::From(c.params)}, c.rti,
-                rti::StateBoundLayout{{2, 3, 4, 5}, {true, true, true, true}}) {
+        solver_(Problem(Base(ocp::LeaderProblem{model::AttitudeModelParams::From(c.params)},
+                             c.safety.collision_radius)),
+                c.rti, rti::StateBoundLayout{{2, 3, 4, 5}, {true, true, true, true}}) {
     const NmpcWeights& wt = c.weights;
-    w_ << wt.position, wt.velocity, wt.attitude, wt.attitude, wt.thrust, wt.attitude_ref,
+    w_.setZero();
+    w_.head<11>() << wt.position, wt.velocity, wt.attitude, wt.attitude, wt.thrust, wt.attitude_ref,
         wt.attitude_ref;
-    wn_ = wt.terminal_factor * w_.head<8>();
+    w_.segment<kObstacleSlots>(11).setConstant(wt.collision);
+    w_.tail<3>() << wt.thrust_rate, wt.attitude_ref_rate, wt.attitude_ref_rate;
+    wn_.head<8>() = wt.terminal_factor * w_.head<8>();
+    wn_.tail<kObstacleSlots>().setConstant(wt.collision);
     solver_.SetWeights(w_, wn_);
     InputBounds(c, &solver_);
-    Vec<9> lb = Vec<9>::Constant(-kInf), ub = Vec<9>::Constant(kInf);
+    Solver::X lb = Solver::X::Constant(-kInf), ub = Solver::X::Constant(kInf);
     lb[2] = c.safety.min_altitude;  // z of the CoM, the ground plane at z = 0
     ub[2] = c.safety.max_altitude;
     lb.segment<3>(3).setConstant(-c.max_speed);
@@ -165,10 +181,7 @@ class LeaderCore final : public NmpcCore {
 
   void Engage(const Vec3& anchor, double yaw_ref) override {
     anchor_ = anchor;
-    for (int k = 0; k <= solver_.horizon(); ++k) {
-      params_[k].setConstant(yaw_ref);
-      solver_.SetParameters(k, params_[k]);
-    }
+    yaw_ref_ = yaw_ref;
   }
 
   void Start(const NmpcInput& in, const Vec3& u_guess) override {
@@ -181,6 +194,7 @@ class LeaderCore final : public NmpcCore {
     if (!first_) solver_.Shift();
     first_ = false;
     References(in.t);
+    Obstacles(in);
     x0_ = State(in);
     const double cpu0 = ThreadCpuSeconds();
     solver_.Step(x0_, &out.u);
@@ -200,10 +214,25 @@ class LeaderCore final : public NmpcCore {
   }
 
  private:
-  static Vec<9> State(const NmpcInput& in) {
-    Vec<9> x;
-    x << in.position, in.own;
+  static Solver::X State(const NmpcInput& in) {
+    Solver::X x;
+    x << in.position, in.own, in.last_command;
     return x;
+  }
+  // Obstacles in {n}: own position plus the constant-velocity prediction of each.
+  void Obstacles(const NmpcInput& in) {
+    const double ts = c_.rti.sample_time;
+    for (int k = 0; k <= solver_.horizon(); ++k) {
+      Solver::P& p = params_[k];
+      p[0] = yaw_ref_;
+      for (int o = 0; o < kObstacleSlots; ++o) {
+        p.segment<3>(Base::ParamObstacle(o)) =
+            o < in.obstacles
+                ? Vec3(in.position + in.obstacle_rel[o] + (k * ts) * in.obstacle_vel[o])
+                : Base::Unused();
+      }
+      solver_.SetParameters(k, p);
+    }
   }
   void References(double t) {
     const double ts = c_.rti.sample_time;
@@ -226,24 +255,31 @@ class LeaderCore final : public NmpcCore {
 
   ControllerConfig c_;
   Vec3 anchor_ = Vec3::Zero();
+  double yaw_ref_ = 0.0;
   Solver solver_;
   Solver::Y w_;
   Solver::YN wn_;
   std::vector<Solver::Y> yref_;
   Solver::YN yref_n_;
   std::vector<Solver::P> params_;
-  Vec<9> x0_ = Vec<9>::Zero();
+  Solver::X x0_ = Solver::X::Zero();
   bool first_ = true;
 };
 
 template <int Nn>
 class FollowerCore final : public NmpcCore {
  public:
-  using Problem = ocp::ReducedFollowerProblem<Nn>;
+  using Reduced = ocp::ReducedFollowerProblem<Nn>;
+  using Base = ocp::WithObstacles<Reduced, kObstacleSlots>;
+  using Problem = ocp::WithInputRate<Base>;
   using Solver = rti::RtiSolver<Problem>;
+  using X = typename Solver::X;
+  static constexpr int kNyR = Reduced::kNy, kNyNR = Reduced::kNyN;
   explicit FollowerCore(const ControllerConfig& c)
       : c_(c),
-        solver_(Problem{model::AttitudeModelParams::From(c.params), c.frame}, c.rti,
+        solver_(Problem(Base(Reduced{model::AttitudeModelParams::From(c.params), c.frame},
+                             c.safety.collision_radius)),
+                c.rti,
                 rti::StateBoundLayout{{0, 1, 2, 3, 4, 5}, {true, true, true, true, true, true}}) {
     const NmpcWeights& wt = c.weights;
     w_.setZero();
@@ -251,8 +287,11 @@ class FollowerCore final : public NmpcCore {
       w_.template segment<3>(3 * j) = wt.position;
       w_.template segment<3>(3 * Nn + 3 * j) = wt.velocity;
     }
-    w_.template tail<5>() << wt.attitude, wt.attitude, wt.thrust, wt.attitude_ref, wt.attitude_ref;
-    wn_ = wt.terminal_factor * w_.template head<6 * Nn + 2>();
+    w_.template segment<5>(kNyR - 5) << wt.attitude, wt.attitude, wt.thrust, wt.attitude_ref,
+        wt.attitude_ref;
+    w_.template segment<kObstacleSlots>(kNyR).setConstant(wt.collision);
+    w_.template tail<3>() << wt.thrust_rate, wt.attitude_ref_rate, wt.attitude_ref_rate;
+    TerminalWeights(w_, &wn_);
     solver_.SetWeights(w_, wn_);
     w_active_ = w_;
     wn_active_ = wn_;
@@ -261,7 +300,8 @@ class FollowerCore final : public NmpcCore {
     for (int j = 0; j < Nn; ++j) y.template segment<3>(3 * j) = c.neighbours[j].desired;
     yref_.assign(solver_.horizon(), y);
     for (int k = 0; k < solver_.horizon(); ++k) solver_.SetReference(k, y);
-    yref_n_ = y.template head<6 * Nn + 2>();
+    yref_n_.setZero();
+    yref_n_.template head<kNyNR>() = y.template head<kNyNR>();
     solver_.SetTerminalReference(yref_n_);
     params_.assign(solver_.horizon() + 1, Solver::P::Zero());
   }
@@ -277,8 +317,8 @@ class FollowerCore final : public NmpcCore {
     NmpcStep out;
     if (!first_) {
       solver_.Shift();
-      Vec<9> shift = Vec<9>::Zero();
-      shift.head<3>() = -solver_.states()[0].template head<3>();
+      X shift = X::Zero();
+      shift.template head<3>() = -solver_.states()[0].template head<3>();
       solver_.OffsetGuess(shift);  // the displacement restarts at zero every step
     }
     first_ = false;
@@ -301,6 +341,12 @@ class FollowerCore final : public NmpcCore {
   }
 
  private:
+  // Terminal: the reduced follower's rows times terminal_factor, the obstacle rows as is.
+  void TerminalWeights(const typename Solver::Y& w, typename Solver::YN* wn) const {
+    wn->template head<kNyNR>() = c_.weights.terminal_factor * w.template head<kNyNR>();
+    wn->template tail<kObstacleSlots>() = w.template segment<kObstacleSlots>(kNyR);
+  }
+
   // A lost neighbour's rows get zero weight (the cost pattern is kept: no allocation) and
   // its prediction no longer bounds the displacement.
   void ActiveNeighbours(const NmpcInput& in) {
@@ -314,18 +360,18 @@ class FollowerCore final : public NmpcCore {
       w_active_.template segment<3>(3 * j).setZero();
       w_active_.template segment<3>(3 * Nn + 3 * j).setZero();
     }
-    wn_active_ = c_.weights.terminal_factor * w_active_.template head<6 * Nn + 2>();
+    TerminalWeights(w_active_, &wn_active_);
     solver_.SetWeightValues(w_active_, wn_active_);
   }
 
   // Stage parameters from the neighbours' constant-velocity predictions, relative-position
   // bounds mapped onto the displacement s: -b <= c_j - s <= b (cf. SetReducedFollowerStage),
-  // the altitude bounds onto s_z from the current height.
-  Vec<9> Stage(const NmpcInput& in) {
+  // the altitude bounds onto s_z from the current height, the obstacles' predictions.
+  X Stage(const NmpcInput& in) {
     const double ts = c_.rti.sample_time;
-    Vec<9> lb = Vec<9>::Constant(-kInf), ub = Vec<9>::Constant(kInf);
-    lb.segment<3>(3).setConstant(-c_.max_speed);
-    ub.segment<3>(3).setConstant(c_.max_speed);
+    X lb = X::Constant(-kInf), ub = X::Constant(kInf);
+    lb.template segment<3>(3).setConstant(-c_.max_speed);
+    ub.template segment<3>(3).setConstant(c_.max_speed);
     const Vec3& b = c_.relative_position_bound;
     const bool height_known = std::isfinite(in.height);
     for (int k = 0; k <= solver_.horizon(); ++k) {
@@ -336,14 +382,19 @@ class FollowerCore final : public NmpcCore {
         const auto& nb = in.neighbours[j];
         if (!in.active[j]) {
           // Finite, unweighted: keeps the linearisation finite.
-          p.template segment<6>(Problem::ParamRelPos(j)).setZero();
+          p.template segment<6>(Reduced::ParamRelPos(j)).setZero();
           continue;
         }
         const Vec3 cj = nb.rel_pos + (k * ts) * nb.vel;
-        p.template segment<3>(Problem::ParamRelPos(j)) = cj;
-        p.template segment<3>(Problem::ParamVel(j)) = nb.vel;
+        p.template segment<3>(Reduced::ParamRelPos(j)) = cj;
+        p.template segment<3>(Reduced::ParamVel(j)) = nb.vel;
         lo = lo.cwiseMax(cj - b);
         hi = hi.cwiseMin(cj + b);
+      }
+      for (int o = 0; o < kObstacleSlots; ++o) {
+        p.template segment<3>(Base::ParamObstacle(o)) =
+            o < in.obstacles ? Vec3(in.obstacle_rel[o] + (k * ts) * in.obstacle_vel[o])
+                             : Base::Unused();
       }
       if (height_known) {
         lo.z() = std::max(lo.z(), c_.safety.min_altitude - in.height);
@@ -351,13 +402,13 @@ class FollowerCore final : public NmpcCore {
       }
       solver_.SetParameters(k, p);
       if (k >= 1) {
-        lb.head<3>() = lo;
-        ub.head<3>() = hi;
+        lb.template head<3>() = lo;
+        ub.template head<3>() = hi;
         solver_.SetStateBounds(k, lb, ub);
       }
     }
-    Vec<9> x0;
-    x0 << Vec3::Zero(), in.own;
+    X x0;
+    x0 << Vec3::Zero(), in.own, in.last_command;
     return x0;
   }
 
@@ -370,7 +421,7 @@ class FollowerCore final : public NmpcCore {
   std::vector<typename Solver::Y> yref_;
   typename Solver::YN yref_n_;
   std::vector<typename Solver::P> params_;
-  Vec<9> x0_ = Vec<9>::Zero();
+  X x0_ = X::Zero();
   bool first_ = true;
 };
 
@@ -393,12 +444,15 @@ constexpr double kMocapRateFilterTime = 0.1;
 /// Consistency check: EKF velocity against the motion-capture rate [m/s], for [s].
 constexpr double kVelocityMismatch = 1.0;
 constexpr double kVelocityMismatchTime = 0.3;
+/// Lateral shift of a sensed vehicle to the observer's left, as a fraction of r_min
+/// (NearestObstacles: the passing rule).
+constexpr double kPassingShift = 0.3;
 
 bool Rejected(estimation::EkfStatus s) {
   using estimation::EkfStatus;
   return s == EkfStatus::kRejectedNonFinite || s == EkfStatus::kRejectedGated ||
          s == EkfStatus::kRejectedTooOld || s == EkfStatus::kRejectedInvalid ||
-         s == EkfStatus::kNumericalError;
+         s == EkfStatus::kNumericalError || s == EkfStatus::kRejectedTimeJump;
 }
 
 }  // namespace
@@ -417,8 +471,23 @@ VehicleController::VehicleController(const ControllerConfig& config)
     nc.target = n.vehicle;
     neighbour_ekfs_.emplace_back(nc);
   }
+  for (int v : config_.sensed_vehicles) {
+    const bool formation = std::any_of(config_.neighbours.begin(), config_.neighbours.end(),
+                                       [v](const NeighbourTarget& n) { return n.vehicle == v; });
+    if (formation || v == config_.vehicle ||
+        std::find(other_vehicles_.begin(), other_vehicles_.end(), v) != other_vehicles_.end())
+      continue;
+    estimation::NeighbourEkfConfig nc;
+    nc.sensors = config_.sensors;
+    nc.observer = config_.vehicle;
+    nc.target = v;
+    other_vehicles_.push_back(v);
+    other_ekfs_.emplace_back(nc);
+  }
+  other_seen_.assign(other_vehicles_.size(), kNaN);
   const std::size_t nn = config_.neighbours.size();
   estimates_.neighbours.assign(nn, estimation::NeighbourStateVec::Constant(kNaN));
+  estimates_.others.assign(other_vehicles_.size(), estimation::NeighbourStateVec::Constant(kNaN));
   neighbour_seen_.assign(nn, kNaN);
   neighbour_seen_since_.assign(nn, kNaN);
   neighbour_active_.assign(nn, 1);
@@ -485,6 +554,17 @@ void VehicleController::Process(const Measurement& m) {
           }
           neighbour_seen_[j] =
               std::max(m.stamp, std::isfinite(neighbour_seen_[j]) ? neighbour_seen_[j] : m.stamp);
+        }
+      }
+      for (std::size_t j = 0; j < other_vehicles_.size(); ++j) {
+        if (other_vehicles_[j] != m.relative.target) continue;
+        const estimation::VehicleEstimate e = ekf_.Estimate(m.stamp);
+        const Mat3 cov = e.covariance.block<3, 3>(6, 6);
+        if (other_ekfs_[j].Process(m, e.euler, e.velocity, &cov) ==
+                estimation::EkfStatus::kAccepted &&
+            std::isfinite(m.stamp)) {
+          other_seen_[j] =
+              std::isfinite(other_seen_[j]) ? std::max(other_seen_[j], m.stamp) : m.stamp;
         }
       }
       break;
@@ -592,6 +672,49 @@ bool VehicleController::EstimateUsable(double t) const {
   return any;
 }
 
+// The kObstacleSlots nearest tracked vehicles (formation neighbours and others) with a
+// finite estimate and an accepted measurement within neighbour_timeout: the last valid
+// estimate is kept while it is that fresh. No allocation (fixed arrays).
+template <class Input>
+void VehicleController::NearestObstacles(double t, Input* in) const {
+  in->obstacles = 0;
+  if (!(config_.safety.collision_radius > 0.0)) return;
+  const double timeout = config_.safety.neighbour_timeout;
+  std::array<double, kObstacleSlots> dist{};
+  auto offer = [&](const estimation::NeighbourStateVec& x, double seen) {
+    if (!x.allFinite() || !std::isfinite(seen) || t - seen > timeout) return;
+    const double d = x.head<3>().norm();
+    int pos = in->obstacles;
+    if (pos == kObstacleSlots) {
+      if (d >= dist[kObstacleSlots - 1]) return;
+      pos = kObstacleSlots - 1;
+    } else {
+      ++in->obstacles;
+    }
+    // Insertion into the slots sorted by distance.
+    for (; pos > 0 && dist[pos - 1] > d; --pos) {
+      dist[pos] = dist[pos - 1];
+      in->obstacle_rel[pos] = in->obstacle_rel[pos - 1];
+      in->obstacle_vel[pos] = in->obstacle_vel[pos - 1];
+    }
+    dist[pos] = d;
+    // Passing rule (right-hand traffic, without communication): each vehicle sees the other
+    // shifted to its left, so that two vehicles heading at each other both dodge to their
+    // right instead of mirroring each other's manoeuvre (a symmetric head-on encounter
+    // otherwise makes both dodge the same way: down, up, or not at all).
+    const Vec3 rel = x.head<3>();
+    const double h = rel.head<2>().norm();
+    const Vec3 left = h > 1e-6 ? Vec3(-rel.y() / h, rel.x() / h, 0.0) : Vec3::Zero();
+    in->obstacle_rel[pos] = rel + kPassingShift * config_.safety.collision_radius * left;
+    in->obstacle_vel[pos] = x.segment<3>(3);
+  };
+  for (std::size_t j = 0; j < estimates_.neighbours.size(); ++j) {
+    offer(estimates_.neighbours[j], neighbour_seen_[j]);
+  }
+  for (std::size_t j = 0; j < estimates_.others.size(); ++j)
+    offer(estimates_.others[j], other_seen_[j]);
+}
+
 ControlOutput VehicleController::Control(double t) {
   estimates_.own = ekf_.initialized() ? ekf_.Estimate(t) : estimation::VehicleEstimate{};
   const estimation::VehicleEstimate& own = estimates_.own;
@@ -602,6 +725,15 @@ ControlOutput VehicleController::Control(double t) {
       estimates_.neighbours[j] = f.StateAt(t, own.velocity);
     } else {
       estimates_.neighbours[j].setConstant(kNaN);
+    }
+  }
+  for (std::size_t j = 0; j < other_ekfs_.size(); ++j) {
+    auto& f = other_ekfs_[j];
+    if (f.initialized() && own.valid && own.velocity.allFinite()) {
+      f.PredictTo(t, own.velocity);
+      estimates_.others[j] = f.StateAt(t, own.velocity);
+    } else {
+      estimates_.others[j].setConstant(kNaN);
     }
   }
   UpdateNeighbourPresence(t);
@@ -797,6 +929,9 @@ ControlOutput VehicleController::Step(double t) {
         in.active[j] = neighbour_active_[j] != 0 && x.allFinite();
         in.neighbours[j] = {x.segment<3>(0), x.segment<3>(3), x[6], x[7]};
       }
+      in.last_command = last_command_.allFinite() ? last_command_
+                                                  : Vec3(config_.params.mass * kGravity, 0.0, 0.0);
+      NearestObstacles(t, &in);
       if (reinit_pending_) {
         const Vec3 guess = last_command_.allFinite()
                                ? last_command_

@@ -11,6 +11,7 @@
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/estimation/neighbour_ekf.hpp"
 #include "fnmpc/estimation/vehicle_ekf.hpp"
+#include "fnmpc/formation/nmpc_weights.hpp"
 #include "fnmpc/formation/recovery.hpp"
 #include "fnmpc/formation/takeoff_pid.hpp"
 #include "fnmpc/formation/trajectory.hpp"
@@ -23,17 +24,6 @@
 /// thrust/throttle and attitude references, with a PID take-off, a smooth switch to the
 /// NMPC and a PID landing. No files, no YAML, no simulator: the app wires it.
 namespace fnmpc::formation {
-
-/// Diagonal NMPC weights (the benchmark spec's values by default). Leader rows: position,
-/// velocity; follower rows: relative position and relative velocity per neighbour.
-struct NmpcWeights {
-  Vec3 position{20, 20, 30};     ///< leader p - p_ref, follower dx_j - d_j [1/m^2]
-  Vec3 velocity{2, 2, 2};        ///< leader v - v_ref, follower v_j - v [s^2/m^2]
-  double attitude = 1.0;         ///< roll and pitch [1/rad^2]
-  double thrust = 0.05;          ///< T - m g [1/N^2]
-  double attitude_ref = 5.0;     ///< roll and pitch references [1/rad^2]
-  double terminal_factor = 5.0;  ///< terminal weights = factor * stage weights
-};
 
 /// One neighbour of a follower: its vehicle index and the desired relative position
 /// d_j = p_j - p_self [m], in {m} (world axes) or {c} (rotated by the follower's yaw).
@@ -65,6 +55,10 @@ struct ControllerConfig {
   double max_attitude_ref = 0.35;              ///< |roll_ref|, |pitch_ref| bound [rad]
   double max_speed = 2.0;  ///< soft |v_i| bound [m/s] (state bounds are soft: never infeasible)
   SafetyConfig safety;     ///< altitude envelope, neighbour loss, recovery ladder, failsafe
+  /// Other vehicles the relative sensor may see, tracked for collision avoidance only (a
+  /// formation neighbour listed here is ignored: it is tracked anyway). Empty: only the
+  /// formation neighbours are avoided.
+  std::vector<int> sensed_vehicles;
   // Follower only.
   std::vector<NeighbourTarget> neighbours;               ///< 1 or 2 neighbours
   ocp::TargetFrame frame = ocp::TargetFrame::kInertial;  ///< frame of `desired`
@@ -121,6 +115,7 @@ struct ControlOutput {
 struct ControllerEstimates {
   estimation::VehicleEstimate own;
   std::vector<estimation::NeighbourStateVec> neighbours;  ///< NeighbourStateIndex layout
+  std::vector<estimation::NeighbourStateVec> others;  ///< sensed_vehicles that are not neighbours
 };
 
 class NmpcCore;  // leader or reduced follower solver (vehicle_controller.cpp)
@@ -186,6 +181,8 @@ class VehicleController {
   void EnterFailsafe(double t, RecoveryReason reason);
   bool PidEstimateLost(double t, double z, ControlOutput* out);
   bool TouchedDown(double z, double vz) const;
+  template <class Input>
+  void NearestObstacles(double t, Input* in) const;
   void TrackMocapPose(const Measurement& m);
   bool RawMocapFresh(double t) const;
   double FailsafeHeight(double t) const;
@@ -195,6 +192,11 @@ class VehicleController {
   ControllerConfig config_;
   estimation::VehicleEkf ekf_;
   std::vector<estimation::NeighbourEkf> neighbour_ekfs_;
+  // Collision avoidance: filters of the sensed vehicles that are not formation neighbours,
+  // with the stamp of their last accepted measurement.
+  std::vector<int> other_vehicles_;
+  std::vector<estimation::NeighbourEkf> other_ekfs_;
+  std::vector<double> other_seen_;
   std::unique_ptr<NmpcCore> nmpc_;
   TakeoffPid pid_;
   FlightPhase phase_ = FlightPhase::kIdle;

@@ -444,11 +444,14 @@ class RtiSolver {
       kkt = std::max(kkt, (next - x_[k + 1]).template lpNorm<Eigen::Infinity>());
       problem_.StageResidual(x_[k], u_[k], params_[k], &y, &yx, &yu);
       const Y wr = w_.cwiseProduct(y - yref_[k]);
-      U gu = yu.transpose() * wr + b.transpose() * lambda_[k + 1] +
+      // lazyProduct: coefficient-based (GCC 12 reports a false -Waggressive-loop-optimizations
+      // in Eigen's GEMV kernel for the larger residuals of the extended problems).
+      U gu = yu.transpose().lazyProduct(wr) + b.transpose().lazyProduct(lambda_[k + 1]) +
              qp_solution_.y_bounds.template segment<kNu>(UPos(k));
       kkt = std::max(kkt, gu.template lpNorm<Eigen::Infinity>());
       if (k >= 1) {
-        X gx = yx.transpose() * wr - lambda_[k] + a.transpose() * lambda_[k + 1] + mu_[k];
+        X gx = yx.transpose().lazyProduct(wr) - lambda_[k] +
+               a.transpose().lazyProduct(lambda_[k + 1]) + mu_[k];
         kkt = std::max(kkt, gx.template lpNorm<Eigen::Infinity>());
       }
       for (int i = 0; i < kNu; ++i) {
@@ -462,7 +465,8 @@ class RtiSolver {
       YN yn;
       Mat<kNyN, kNx>& ynx = *ynx_buf_;
       problem_.TerminalResidual(x_[n_], params_[n_], &yn, &ynx);
-      X gx = ynx.transpose() * w_n_.cwiseProduct(yn - yref_n_) - lambda_[n_] + mu_[n_];
+      const YN wrn = w_n_.cwiseProduct(yn - yref_n_);
+      X gx = ynx.transpose().lazyProduct(wrn) - lambda_[n_] + mu_[n_];
       kkt = std::max(kkt, gx.template lpNorm<Eigen::Infinity>());
     }
     for (int r = 0; r < nc_; ++r) {

@@ -226,3 +226,79 @@ TEST(SafetyTest, NoAllocationFromTakeoffToLanding) {
 
 }  // namespace
 }  // namespace fnmpc::formation
+
+namespace fnmpc::formation {
+namespace {
+
+/// Two followers whose targets are each other's start: they must swap sides through each
+/// other while the (virtual, still) leader hovers. Returns the smallest CoM distance in the
+/// NMPC phase and the final formation errors.
+struct SwapResult {
+  double min_distance = kInf;
+  double error_a = kNaN, error_b = kNaN;
+  long fallbacks = 0;
+};
+SwapResult FlySwap(double radius) {
+  const Vec3 leader(2.0, 0.0, 1.1);
+  ControllerConfig ca = BaseConfig(false), cb = BaseConfig(false);
+  ca.vehicle = 1;
+  cb.vehicle = 2;
+  ca.safety.collision_radius = cb.safety.collision_radius = radius;
+  // A starts at y = -1.5 and must end at y = +1.5 (leader offset), B the other way.
+  ca.neighbours = {{0, Vec3(2.0, -1.5, 0.0)}, {2, Vec3(0.0, -3.0, 0.0)}};
+  cb.neighbours = {{0, Vec3(2.0, 1.5, 0.0)}, {1, Vec3(0.0, 3.0, 0.0)}};
+  VehicleController a(ca), b(cb);
+  Plant pa, pb;
+  pa.x[1] = -1.5;
+  pb.x[1] = 1.5;
+  const Vec3 a0 = pa.x.head<3>(), b0 = pb.x.head<3>();
+  std::vector<estimation::NeighbourStateVec> na(2), nb(2);
+  SwapResult r;
+  for (double t = 0.0; t <= 16.0; t += kTs) {
+    auto own = [&](const Plant& p, const Vec3& start) {
+      estimation::VehicleEstimate e = p.Estimate(t);
+      e.position -= Vec3(start.x(), start.y(), kGround);  // {m}: origin at the start
+      return e;
+    };
+    auto rel = [](const Plant& self, const Vec3& other_p, const Vec3& other_v,
+                  estimation::NeighbourStateVec* out) {
+      out->setZero();
+      out->head<3>() = other_p - self.x.head<3>();
+      out->segment<3>(3) = other_v;
+    };
+    rel(pa, leader, Vec3::Zero(), &na[0]);
+    rel(pa, pb.x.head<3>(), pb.x.segment<3>(3), &na[1]);
+    rel(pb, leader, Vec3::Zero(), &nb[0]);
+    rel(pb, pa.x.head<3>(), pa.x.segment<3>(3), &nb[1]);
+    const ControlOutput oa = a.ControlWithEstimates(t, own(pa, a0), na);
+    const ControlOutput ob = b.ControlWithEstimates(t, own(pb, b0), nb);
+    pa.Step(oa);
+    pb.Step(ob);
+    if (a.phase() == FlightPhase::kNmpc && b.phase() == FlightPhase::kNmpc)
+      r.min_distance = std::min(r.min_distance, (pa.x.head<3>() - pb.x.head<3>()).norm());
+  }
+  r.error_a = ((leader - pa.x.head<3>()) - ca.neighbours[0].desired).norm();
+  r.error_b = ((leader - pb.x.head<3>()) - cb.neighbours[0].desired).norm();
+  r.fallbacks = a.fallbacks() + b.fallbacks();
+  return r;
+}
+
+TEST(SafetyTest, FollowersSwappingSidesAreKeptApart) {
+  // Without collision avoidance they fly through each other
+  const SwapResult off = FlySwap(0.0);
+  EXPECT_LT(off.min_distance, 0.1);
+  // With it they dodge (passing rule: each to its right) and end in formation. The goal of
+  // keeping r_min - 5 cm is NOT reached yet (docs/results.md, "Faults and safety"): the
+  // one-sided penalty acts too late at a 4 m/s closing speed. What is asserted is what holds.
+  const double r = 0.45;
+  const SwapResult on = FlySwap(r);
+  std::printf("[   INFO   ] swap: min distance %.3f m without, %.3f m with r_min %.2f m\n",
+              off.min_distance, on.min_distance, r);
+  EXPECT_GT(on.min_distance, off.min_distance + 0.08);
+  EXPECT_LT(on.error_a, 0.05);
+  EXPECT_LT(on.error_b, 0.05);
+  EXPECT_EQ(on.fallbacks, 0);
+}
+
+}  // namespace
+}  // namespace fnmpc::formation

@@ -1,0 +1,141 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include <cmath>
+
+#include "fnmpc/core/types.hpp"
+#include "fnmpc/model/input_memory_model.hpp"
+
+/// Extensions of a least-squares problem (fnmpc/ocp/problems.hpp contract) for the
+/// controllers: collision avoidance and input-rate costs. Each wraps any problem, keeps its
+/// residuals and parameters first and appends its own, so the benchmark problems stay as the
+/// spec defines them. The wrapped problem's Jacobians are passed through temporaries that
+/// start as the caller's blocks, so only the entries the wrapped problem writes change (the
+/// solver's sparsity detection relies on it).
+namespace fnmpc::ocp {
+
+/// Soft collision avoidance against `Slots` obstacles: one residual row per obstacle o,
+///   e_o = min(0, |c_o - p| - r_min),
+/// a one-sided quadratic penalty that is zero outside the radius and that Gauss-Newton
+/// linearises at every iteration (a soft, non-convex constraint inside the OCP). p is the
+/// position block of the wrapped problem's state (Model::kPos, in the frame of its
+/// parameters); c_o are stage parameters appended after the wrapped problem's; an unused slot
+/// is placed far away. Appended to the stage and terminal residuals.
+template <class P, int Slots>
+struct WithObstacles {
+  using Model = typename P::Model;
+  static constexpr int kSlots = Slots;
+  static constexpr int kNx = P::kNx, kNu = P::kNu, kNy = P::kNy + Slots, kNyN = P::kNyN + Slots,
+                       kNp = P::kNp + 3 * Slots;
+  static constexpr int kPos = Model::kPos;
+  P base;
+  model::AttitudeModelParams params;
+  double radius = 0.45;  ///< r_min [m]
+
+  explicit WithObstacles(const P& p = P{}, double r_min = 0.45)
+      : base(p), params(p.params), radius(r_min) {}
+
+  /// Offset of obstacle o's position in p.
+  static constexpr int ParamObstacle(int o) { return P::kNp + 3 * o; }
+  /// A position for an unused slot: far outside any radius.
+  static Vec3 Unused() { return Vec3(0.0, 0.0, 1e4); }
+
+  void StageResidual(const Vec<kNx>& x, const Vec<kNu>& u, const Vec<kNp>& p, Vec<kNy>* y,
+                     Mat<kNy, kNx>* yx, Mat<kNy, kNu>* yu) const {
+    Vec<P::kNy> yb;
+    if (yx == nullptr) {
+      base.StageResidual(x, u, p.template head<P::kNp>(), &yb, nullptr, nullptr);
+    } else {
+      Mat<P::kNy, kNx> bx = yx->template topRows<P::kNy>();
+      Mat<P::kNy, kNu> bu = yu->template topRows<P::kNy>();
+      base.StageResidual(x, u, p.template head<P::kNp>(), &yb, &bx, &bu);
+      yx->template topRows<P::kNy>() = bx;
+      yu->template topRows<P::kNy>() = bu;
+    }
+    y->template head<P::kNy>() = yb;
+    Rows(x, p, P::kNy, y, yx);
+  }
+
+  void TerminalResidual(const Vec<kNx>& x, const Vec<kNp>& p, Vec<kNyN>* y,
+                        Mat<kNyN, kNx>* yx) const {
+    Vec<P::kNyN> yb;
+    if (yx == nullptr) {
+      base.TerminalResidual(x, p.template head<P::kNp>(), &yb, nullptr);
+    } else {
+      Mat<P::kNyN, kNx> bx = yx->template topRows<P::kNyN>();
+      base.TerminalResidual(x, p.template head<P::kNp>(), &yb, &bx);
+      yx->template topRows<P::kNyN>() = bx;
+    }
+    y->template head<P::kNyN>() = yb;
+    Rows(x, p, P::kNyN, y, yx);
+  }
+
+ private:
+  // Writes the three position entries of every row on every call (zero when inactive): the
+  // same structural nonzeros each time.
+  template <class Yv, class Jx>
+  void Rows(const Vec<kNx>& x, const Vec<kNp>& p, int row0, Yv* y, Jx* yx) const {
+    for (int o = 0; o < Slots; ++o) {
+      const Vec3 d = p.template segment<3>(ParamObstacle(o)) - x.template segment<3>(kPos);
+      const double dist = d.norm();
+      const bool active = dist < radius;
+      (*y)[row0 + o] = active ? dist - radius : 0.0;
+      if (yx == nullptr) continue;
+      // d dist / d pos = -d / |d| (any unit vector when the centres coincide).
+      const Vec3 g =
+          !active ? Vec3::Zero() : (dist > 1e-9 ? Vec3(-d / dist) : Vec3(0.0, 0.0, -1.0));
+      yx->template block<1, 3>(row0 + o, kPos) = g.transpose();
+    }
+  }
+};
+
+/// Input-rate cost of the reference work: the state carries the previous input
+/// (model::InputMemoryModel) and the stage residual gains u_k - u_prev_k, the change between
+/// consecutive stages and, at k = 0, from the command last applied (set in x_0). The
+/// terminal residual is the wrapped problem's.
+template <class P>
+struct WithInputRate {
+  using Model = model::InputMemoryModel<typename P::Model>;
+  static constexpr int kNxBase = P::kNx, kNx = Model::kNx, kNu = P::kNu, kNy = P::kNy + kNu,
+                       kNyN = P::kNyN, kNp = P::kNp;
+  static constexpr int kPrevInput = Model::kPrevInput;
+  P base;
+  model::AttitudeModelParams params;
+
+  explicit WithInputRate(const P& p = P{}) : base(p), params(p.params) {}
+
+  void StageResidual(const Vec<kNx>& x, const Vec<kNu>& u, const Vec<kNp>& p, Vec<kNy>* y,
+                     Mat<kNy, kNx>* yx, Mat<kNy, kNu>* yu) const {
+    Vec<P::kNy> yb;
+    const Vec<kNxBase> xb = x.template head<kNxBase>();
+    if (yx == nullptr) {
+      base.StageResidual(xb, u, p, &yb, nullptr, nullptr);
+    } else {
+      Mat<P::kNy, kNxBase> bx = yx->template topLeftCorner<P::kNy, kNxBase>();
+      Mat<P::kNy, kNu> bu = yu->template topRows<P::kNy>();
+      base.StageResidual(xb, u, p, &yb, &bx, &bu);
+      yx->template topLeftCorner<P::kNy, kNxBase>() = bx;
+      yu->template topRows<P::kNy>() = bu;
+      yx->template block<kNu, kNu>(P::kNy, kPrevInput).diagonal().setConstant(-1.0);
+      yu->template bottomRows<kNu>().diagonal().setOnes();
+    }
+    y->template head<P::kNy>() = yb;
+    y->template tail<kNu>() = u - x.template tail<kNu>();
+  }
+
+  void TerminalResidual(const Vec<kNx>& x, const Vec<kNp>& p, Vec<kNyN>* y,
+                        Mat<kNyN, kNx>* yx) const {
+    Vec<P::kNyN> yb;
+    const Vec<kNxBase> xb = x.template head<kNxBase>();
+    if (yx == nullptr) {
+      base.TerminalResidual(xb, p, &yb, nullptr);
+    } else {
+      Mat<P::kNyN, kNxBase> bx = yx->template leftCols<kNxBase>();
+      base.TerminalResidual(xb, p, &yb, &bx);
+      yx->template leftCols<kNxBase>() = bx;
+    }
+    *y = yb;
+  }
+};
+
+}  // namespace fnmpc::ocp

@@ -1,0 +1,137 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// WithObstacles, WithInputRate and InputMemoryModel: values and Jacobians against central
+// finite differences, like every model; the wrapped problem's residuals pass unchanged.
+#include "fnmpc/ocp/problem_extensions.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "fnmpc/ocp/problems.hpp"
+
+namespace fnmpc::ocp {
+namespace {
+
+using Obst = WithObstacles<ReducedFollowerProblem<2>, 3>;
+using Full = WithInputRate<Obst>;
+
+template <class P>
+void CheckJacobians(const P& prob, const Vec<P::kNx>& x, const Vec<P::kNu>& u,
+                    const Vec<P::kNp>& p) {
+  Vec<P::kNy> y;
+  Mat<P::kNy, P::kNx> yx = Mat<P::kNy, P::kNx>::Zero();
+  Mat<P::kNy, P::kNu> yu = Mat<P::kNy, P::kNu>::Zero();
+  prob.StageResidual(x, u, p, &y, &yx, &yu);
+  const double h = 1e-6;
+  for (int i = 0; i < P::kNx; ++i) {
+    Vec<P::kNx> xp = x, xm = x;
+    xp[i] += h;
+    xm[i] -= h;
+    Vec<P::kNy> yp, ym;
+    prob.StageResidual(xp, u, p, &yp, nullptr, nullptr);
+    prob.StageResidual(xm, u, p, &ym, nullptr, nullptr);
+    EXPECT_LT(((yp - ym) / (2 * h) - yx.col(i)).cwiseAbs().maxCoeff(), 1e-6) << "x col " << i;
+  }
+  for (int i = 0; i < P::kNu; ++i) {
+    Vec<P::kNu> up = u, um = u;
+    up[i] += h;
+    um[i] -= h;
+    Vec<P::kNy> yp, ym;
+    prob.StageResidual(x, up, p, &yp, nullptr, nullptr);
+    prob.StageResidual(x, um, p, &ym, nullptr, nullptr);
+    EXPECT_LT(((yp - ym) / (2 * h) - yu.col(i)).cwiseAbs().maxCoeff(), 1e-6) << "u col " << i;
+  }
+  Vec<P::kNyN> yn;
+  Mat<P::kNyN, P::kNx> ynx = Mat<P::kNyN, P::kNx>::Zero();
+  prob.TerminalResidual(x, p, &yn, &ynx);
+  for (int i = 0; i < P::kNx; ++i) {
+    Vec<P::kNx> xp = x, xm = x;
+    xp[i] += h;
+    xm[i] -= h;
+    Vec<P::kNyN> yp, ym;
+    prob.TerminalResidual(xp, p, &yp, nullptr);
+    prob.TerminalResidual(xm, p, &ym, nullptr);
+    EXPECT_LT(((yp - ym) / (2 * h) - ynx.col(i)).cwiseAbs().maxCoeff(), 1e-6) << "xN col " << i;
+  }
+}
+
+TEST(ProblemExtensionsTest, JacobiansMatchFiniteDifferences) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> U(-0.3, 0.3);
+  Full prob(Obst(ReducedFollowerProblem<2>{}, 0.45));
+  for (int trial = 0; trial < 20; ++trial) {
+    Vec<Full::kNx> x;
+    for (int i = 0; i < Full::kNx; ++i) x[i] = U(rng);
+    const Vec3 u(13.0 + U(rng), U(rng), U(rng));
+    Vec<Full::kNp> p;
+    for (int i = 0; i < Full::kNp; ++i) p[i] = 3.0 * U(rng);
+    // Obstacle 0 inside the radius (active), 1 outside, 2 unused.
+    p.segment<3>(Obst::ParamObstacle(0)) = x.head<3>() + Vec3(0.2, -0.1, 0.05);
+    p.segment<3>(Obst::ParamObstacle(1)) = x.head<3>() + Vec3(1.0, 0.4, 0.0);
+    p.segment<3>(Obst::ParamObstacle(2)) = Obst::Unused();
+    CheckJacobians(prob, x, u, p);
+  }
+}
+
+TEST(ProblemExtensionsTest, ResidualsExtendTheWrappedProblem) {
+  const ReducedFollowerProblem<2> base{};
+  const Full prob(Obst(base, 0.5));
+  Vec<Full::kNx> x = Vec<Full::kNx>::Zero();
+  x.head<3>() = Vec3(0.1, 0.2, 0.3);
+  x.tail<3>() = Vec3(13.0, 0.01, -0.02);  // the previous input
+  const Vec3 u(13.5, 0.05, -0.02);
+  Vec<Full::kNp> p = Vec<Full::kNp>::Zero();
+  p.head<ReducedFollowerProblem<2>::kNp>().setConstant(0.7);
+  p.segment<3>(Obst::ParamObstacle(0)) = x.head<3>() + Vec3(0.3, 0.0, 0.0);  // 0.2 inside
+  p.segment<3>(Obst::ParamObstacle(1)) = x.head<3>() + Vec3(0.0, 0.0, 0.6);  // outside
+  p.segment<3>(Obst::ParamObstacle(2)) = Obst::Unused();
+  Vec<Full::kNy> y;
+  prob.StageResidual(x, u, p, &y, nullptr, nullptr);
+  Vec<ReducedFollowerProblem<2>::kNy> yb;
+  base.StageResidual(x.head<9>(), u, p.head<ReducedFollowerProblem<2>::kNp>(), &yb, nullptr,
+                     nullptr);
+  const int nb = ReducedFollowerProblem<2>::kNy;
+  EXPECT_TRUE(y.head(nb).isApprox(yb));
+  EXPECT_NEAR(y[nb], -0.2, 1e-12);  // the violation of the radius
+  EXPECT_EQ(y[nb + 1], 0.0);
+  EXPECT_EQ(y[nb + 2], 0.0);
+  EXPECT_TRUE(y.tail<3>().isApprox(u - x.tail<3>()));  // input change from the previous
+}
+
+TEST(ProblemExtensionsTest, InputMemoryModelCarriesTheInput) {
+  using M = model::InputMemoryModel<model::QuadrotorModel>;
+  model::AttitudeModelParams m;
+  Vec<M::kNx> x = Vec<M::kNx>::Zero();
+  x[2] = 1.0;
+  x.tail<3>() = Vec3(1.0, 2.0, 3.0);
+  const Vec3 u(14.0, 0.1, -0.05);
+  Mat<M::kNx, M::kNx> a = Mat<M::kNx, M::kNx>::Zero();
+  Mat<M::kNx, M::kNu> b = Mat<M::kNx, M::kNu>::Zero();
+  const Vec<M::kNx> next = M::Discretise(x, u, 0.0, m, 0.05, 2, &a, &b);
+  // The memory holds the input; the base state evolves as the base model alone.
+  EXPECT_TRUE(next.tail<3>() == u);
+  Mat<9, 9> ab = Mat<9, 9>::Zero();
+  Mat<9, 3> bb = Mat<9, 3>::Zero();
+  const Vec<9> nb =
+      model::Discretise<model::QuadrotorModel>(x.head<9>(), u, 0.0, m, 0.05, 2, &ab, &bb);
+  EXPECT_TRUE(next.head<9>() == nb);
+  EXPECT_TRUE((a.topLeftCorner<9, 9>() == ab));
+  EXPECT_TRUE(b.topRows<9>() == bb);
+  EXPECT_TRUE(a.rightCols<3>().isZero());
+  EXPECT_TRUE(a.bottomRows<3>().isZero());
+  EXPECT_TRUE(b.bottomRows<3>().isIdentity());
+  // Sensitivities against finite differences of the whole map.
+  const double h = 1e-6;
+  for (int i = 0; i < M::kNu; ++i) {
+    Vec3 up = u, um = u;
+    up[i] += h;
+    um[i] -= h;
+    const Vec<M::kNx> d = (M::Discretise(x, up, 0.0, m, 0.05, 2, nullptr, nullptr) -
+                           M::Discretise(x, um, 0.0, m, 0.05, 2, nullptr, nullptr)) /
+                          (2 * h);
+    EXPECT_LT((d - b.col(i)).cwiseAbs().maxCoeff(), 1e-5) << i;
+  }
+}
+
+}  // namespace
+}  // namespace fnmpc::ocp
