@@ -42,17 +42,6 @@ double Mean(const std::vector<double>& v) {
 /// NaN -> null in JSON.
 json Num(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
 
-formation::NmpcWeights Weights(const config::ScenarioWeights& w) {
-  formation::NmpcWeights o;
-  o.position = w.position;
-  o.velocity = w.velocity;
-  o.attitude = w.attitude;
-  o.thrust = w.thrust;
-  o.attitude_ref = w.attitude_ref;
-  o.terminal_factor = w.terminal_factor;
-  return o;
-}
-
 struct VehicleLog {
   std::unique_ptr<std::ofstream> csv;
   std::vector<double> errors;  // follower: mean over neighbours of |dx_j - d_j|
@@ -201,7 +190,7 @@ formation::ControllerConfig ControllerConfigFor(const config::ScenarioConfig& sc
   c.rti.max_initial_iterations = sc.max_initial_iterations;
   c.rti.kkt_threshold = sc.kkt_threshold;
   c.rti.cpu_budget = sc.cpu_budget;
-  c.weights = Weights(v.leader ? sc.leader_weights : sc.follower_weights);
+  c.weights = v.leader ? sc.leader_weights : sc.follower_weights;
   c.thrust_min = sc.thrust_min;
   c.thrust_max = sc.thrust_max;
   c.pid.max_thrust = sc.thrust_max;
@@ -209,6 +198,12 @@ formation::ControllerConfig ControllerConfigFor(const config::ScenarioConfig& sc
   c.max_speed = sc.max_speed;
   c.safety = sc.safety;
   for (const auto& n : v.neighbours) c.neighbours.push_back({n.index, n.desired});
+  // Collision avoidance: every other vehicle the relative sensor may report.
+  if (v.sensors.relative.enabled) {
+    for (int j = 0; j < static_cast<int>(sc.vehicles.size()); ++j) {
+      if (j != i) c.sensed_vehicles.push_back(j);
+    }
+  }
   c.frame = v.frame_control ? ocp::TargetFrame::kControl : ocp::TargetFrame::kInertial;
   c.relative_position_bound = v.relative_position_bound;
   c.trajectory = trajectory;

@@ -60,6 +60,9 @@ ScenarioWeights ParseWeights(YamlMap m) {
   w.thrust = Positive(m, "thrust", w.thrust);
   w.attitude_ref = Positive(m, "attitude_ref", w.attitude_ref);
   w.terminal_factor = NonNegative(m, "terminal_factor", w.terminal_factor);
+  w.thrust_rate = NonNegative(m, "thrust_rate", w.thrust_rate);
+  w.attitude_ref_rate = NonNegative(m, "attitude_ref_rate", w.attitude_ref_rate);
+  w.collision = NonNegative(m, "collision", w.collision);
   m.Finish();
   return w;
 }

@@ -8,6 +8,7 @@
 #include "fnmpc/config/yaml_reader.hpp"
 #include "fnmpc/core/sensors.hpp"
 #include "fnmpc/core/types.hpp"
+#include "fnmpc/formation/nmpc_weights.hpp"
 #include "fnmpc/formation/recovery.hpp"
 #include "fnmpc/model/vehicle_params.hpp"
 
@@ -38,11 +39,8 @@ struct ScenarioVehicle {
   double landing_time = kNaN;    ///< per-vehicle start of the landing [s]; NaN: phases.landing_time
 };
 
-/// NMPC weights (see formation::NmpcWeights).
-struct ScenarioWeights {
-  Vec3 position{20, 20, 30}, velocity{2, 2, 2};
-  double attitude = 1.0, thrust = 0.05, attitude_ref = 5.0, terminal_factor = 5.0;
-};
+/// NMPC weights: the controllers' own struct.
+using ScenarioWeights = formation::NmpcWeights;
 
 /// A fault that downs one vehicle at a time (`faults.kill_controller`, `faults.motors_off`).
 struct VehicleFault {
