@@ -447,6 +447,8 @@ constexpr double kVelocityMismatchTime = 0.3;
 /// Lateral shift of a sensed vehicle to the observer's left, as a fraction of r_min
 /// (NearestObstacles: the passing rule).
 constexpr double kPassingShift = 0.3;
+/// A neighbour whose estimated CoM is within this of the resting height is on the ground [m].
+constexpr double kGroundedMargin = 0.15;
 
 bool Rejected(estimation::EkfStatus s) {
   using estimation::EkfStatus;
@@ -491,6 +493,9 @@ VehicleController::VehicleController(const ControllerConfig& config)
   neighbour_seen_.assign(nn, kNaN);
   neighbour_seen_since_.assign(nn, kNaN);
   neighbour_active_.assign(nn, 1);
+  neighbour_landed_.assign(nn, 0);
+  neighbour_grounded_since_.assign(nn, kNaN);
+  neighbour_airborne_since_.assign(nn, kNaN);
   // The solver is built here, not at the take-off -> NMPC switch: no allocation in flight.
   if (config_.leader) {
     nmpc_ = std::make_unique<LeaderCore>(config_);
@@ -599,16 +604,37 @@ void VehicleController::Blend(double t, double* thrust, double* roll, double* pi
 }
 
 // Hysteresis on the neighbours' accepted relative measurements: lost after
-// neighbour_timeout without one, back after a run of neighbour_reacquire_time.
+// neighbour_timeout without one, back after a run of neighbour_reacquire_time. A neighbour
+// seen on the ground (its estimated CoM height, own height plus the relative offset, within
+// kGroundedMargin of the resting height) for neighbour_timeout is lost too: a landed or
+// fallen vehicle cannot be kept in formation; it returns once airborne again for
+// neighbour_reacquire_time.
 void VehicleController::UpdateNeighbourPresence(double t) {
+  const double z = Height();
   for (std::size_t j = 0; j < neighbour_active_.size(); ++j) {
     const double seen = neighbour_seen_[j];
     const bool fresh = std::isfinite(seen) && t - seen <= config_.safety.neighbour_timeout;
-    if (neighbour_active_[j] && !fresh && std::isfinite(nmpc_start_)) {
+    const double zj = z + estimates_.neighbours[j][2];
+    const bool grounded = std::isfinite(zj) && zj < config_.ground_height + kGroundedMargin;
+    if (grounded) {
+      if (!std::isfinite(neighbour_grounded_since_[j])) neighbour_grounded_since_[j] = t;
+    } else {
+      neighbour_grounded_since_[j] = kNaN;
+    }
+    const bool landed =
+        grounded && t - neighbour_grounded_since_[j] >= config_.safety.neighbour_timeout;
+    if (neighbour_active_[j] && (!fresh || landed) && std::isfinite(nmpc_start_)) {
       neighbour_active_[j] = 0;
-    } else if (!neighbour_active_[j] && fresh &&
-               seen - neighbour_seen_since_[j] >= config_.safety.neighbour_reacquire_time) {
-      neighbour_active_[j] = 1;
+      neighbour_landed_[j] = landed ? 1 : 0;
+      neighbour_airborne_since_[j] = kNaN;
+    } else if (!neighbour_active_[j] && fresh && !grounded) {
+      if (!std::isfinite(neighbour_airborne_since_[j])) neighbour_airborne_since_[j] = t;
+      const bool run = seen - neighbour_seen_since_[j] >= config_.safety.neighbour_reacquire_time;
+      const bool airborne = !neighbour_landed_[j] || t - neighbour_airborne_since_[j] >=
+                                                         config_.safety.neighbour_reacquire_time;
+      if (run && airborne) neighbour_active_[j] = 1;
+    } else if (grounded) {
+      neighbour_airborne_since_[j] = kNaN;
     }
   }
 }

@@ -229,6 +229,9 @@ class VehicleController {
   std::vector<double> neighbour_seen_;        // stamp of the last accepted measurement [s]
   std::vector<double> neighbour_seen_since_;  // start of the current run of acceptances [s]
   std::vector<char> neighbour_active_;
+  std::vector<char> neighbour_landed_;            // lost because seen on the ground
+  std::vector<double> neighbour_grounded_since_;  // [s], NaN: airborne
+  std::vector<double> neighbour_airborne_since_;  // [s], NaN: not (yet) airborne again
 };
 
 }  // namespace fnmpc::formation
