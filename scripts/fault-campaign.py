@@ -122,7 +122,7 @@ def main():
     stats = {k: {"runs": 0, "crashes": 0, "nan": 0, "safe": 0, "others": 0, "downed": 0,
                  "downed_safe": 0, "fell": 0, "fallbacks": 0, "injected": 0, "reinits": 0,
                  "failsafes": 0, "dropped": 0, "outliers": 0, "zmax": 0.0, "dmax": 0.0,
-                 "minsep": math.inf, "bad": 0, "impact": []} for k in KINDS}
+                 "minsep": math.inf, "bad": 0, "impact": [], "touchdown": []} for k in KINDS}
     failures = []
     started = time.time()
     for r in range(a.runs):
@@ -154,7 +154,11 @@ def main():
         for name, v in s["vehicles"].items():
             if name in downed:
                 st["downed"] += 1
-                st["downed_safe"] += bool(v.get("landed_safely"))
+                k = fj.get("kill_controller", {})
+                if k.get("vehicle") == name:
+                    st["downed_safe"] += bool(k.get("autopilot_landed"))
+                    if k.get("touchdown_vertical_speed_mps") is not None:
+                        st["touchdown"].append(k["touchdown_vertical_speed_mps"])
                 continue
             st["others"] += 1
             st["safe"] += bool(v.get("landed_safely"))
@@ -183,7 +187,7 @@ def main():
         print(f"fault-campaign: run {r + 1}/{a.runs} {kind} {'ok' if ok else 'FAILED'} "
               f"({time.time() - started:.0f} s)", file=sys.stderr, flush=True)
     print("| fault kind | runs | crashes | non-finite commands | other vehicles landed safely | "
-          "downed vehicles: autopilot-landed safely / fell (impact v_z [m/s]) | injected solver "
+          "downed vehicle | injected solver "
           "failures | fallbacks | re-inits | failsafes | dropped / outlier measurements | "
           "max z [m] | max distance from start [m] | min separation [m] | runs failing a check |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
@@ -195,11 +199,13 @@ def main():
         tot["runs"] += st["runs"]
         tot["bad"] += st["bad"]
         downed = "–"
-        if st["downed"]:
-            fell = st["fell"]
-            imp = (f" ({min(st['impact']):.1f} to {max(st['impact']):.1f})"
+        if st["touchdown"]:
+            downed = (f"{st['downed_safe']}/{st['downed']} landed by the autopilot (touchdown v_z "
+                      f"{min(st['touchdown']):.2f} to {max(st['touchdown']):.2f} m/s)")
+        elif st["downed"]:
+            imp = (f" (impact v_z {min(st['impact']):.1f} to {max(st['impact']):.1f} m/s)"
                    if st["impact"] else "")
-            downed = f"{st['downed_safe']}/{st['downed']} / {fell}{imp}"
+            downed = f"{st['fell']}/{st['downed']} fell{imp}"
         print(f"| {k} | {st['runs']} | {st['crashes']} | {st['nan']} | "
               f"{st['safe']}/{st['others']} | {downed} | {st['injected']} | {st['fallbacks']} | "
               f"{st['reinits']} | {st['failsafes']} | {st['dropped']} / {st['outliers']} | "
