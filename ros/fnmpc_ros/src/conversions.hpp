@@ -54,7 +54,9 @@ ros::Time ToRosTime(double t);
 geometry_msgs::Quaternion EulerToQuaternion(const Vec3& euler);
 Vec3 QuaternionToEuler(const geometry_msgs::Quaternion& q);
 
-// ---- Sensor measurements (sim -> vehicle). `seq` orders the messages of one vehicle.
+// ---- Sensor measurements (sim -> vehicle). `seq` goes into header.seq for information only:
+// roscpp overwrites header.seq with its per-publisher counter, so it cannot order messages
+// of different topics; lockstep orders them with SimSync::order (docs/ros.md).
 geometry_msgs::PoseStamped ToPose(const Measurement& m, std::uint32_t seq);
 sensor_msgs::Imu ToImu(const Measurement& m, const std::string& vehicle, std::uint32_t seq);
 fnmpc_ros::OpticalFlow ToOpticalFlow(const Measurement& m, std::uint32_t seq);

@@ -2,7 +2,9 @@
 // sim_node: the MuJoCo world of a scenario (app::WorldConfigFor, as in `fnmpc run`).
 // Publishes every vehicle's sensor topics at their rates (each measurement when it is
 // delivered), its ground truth, and /clock; applies the vehicles' setpoints to the emulated
-// autopilots. Lockstep (docs/ros.md): simulated time advances one control period only when
+// autopilots. Each period's SimSync carries the kinds of the measurements delivered to the
+// vehicle since the previous one, in delivery order (the fusion order of `fnmpc run`).
+// Lockstep (docs/ros.md): simulated time advances one control period only when
 // every live vehicle node has answered the current period's SimSync; a vehicle silent for
 // ~vehicle_timeout wall seconds is declared dead and its autopilot flies the failsafe (level
 // attitude, slow descent from the true vertical speed, motors off on the ground).
@@ -27,10 +29,12 @@ struct VehicleIo {
   std::string name;
   ros::Publisher pose, imu, flow, compass, battery, relative, sync, truth, true_battery;
   ros::Subscriber setpoint_sub;
-  std::uint32_t seq = 0;       // measurements published so far (SimSync::measurements)
-  bool live = true;            // false: declared dead, failsafe
-  bool answered = false;       // answered the current period
-  bool ever_answered = false;  // the first answer counts as "started"
+  std::uint32_t seq = 0;            // measurements published so far (SimSync::measurements)
+  std::vector<std::uint8_t> order;  // kinds published since the last control period
+  fnmpc_ros::SimSync sync_msg;      // this period's sync (repeated during start-up)
+  bool live = true;                 // false: declared dead, failsafe
+  bool answered = false;            // answered the current period
+  bool ever_answered = false;       // the first answer counts as "started"
   sim::AttitudeCommand command;
   double failsafe_since = kNaN;
 };
@@ -163,6 +167,7 @@ class SimNode {
     while (world_->PopMeasurement(&m)) {
       VehicleIo& io = io_.at(static_cast<std::size_t>(m.vehicle));
       const std::uint32_t seq = io.seq++;
+      io.order.push_back(SyncKind(m.kind));
       switch (m.kind) {
         case SensorKind::kMocapPose:
           io.pose.publish(ToPose(m, seq));
@@ -203,6 +208,7 @@ class SimNode {
       io_[i].true_battery.publish(b);
       io_[i].answered = false;
     }
+    MakeSyncs();
     SendSyncs();
     // Wait for every live vehicle. Before the first answer a vehicle gets startup_timeout
     // (node start, subscriptions), and the sync is repeated because it may have been
@@ -243,6 +249,24 @@ class SimNode {
     return true;
   }
 
+  static std::uint8_t SyncKind(SensorKind k) {
+    switch (k) {
+      case SensorKind::kMocapPose:
+        return fnmpc_ros::SimSync::MOCAP_POSE;
+      case SensorKind::kImu:
+        return fnmpc_ros::SimSync::IMU;
+      case SensorKind::kOpticalFlow:
+        return fnmpc_ros::SimSync::OPTICAL_FLOW;
+      case SensorKind::kCompass:
+        return fnmpc_ros::SimSync::COMPASS;
+      case SensorKind::kBattery:
+        return fnmpc_ros::SimSync::BATTERY;
+      case SensorKind::kRelative:
+        return fnmpc_ros::SimSync::RELATIVE;
+    }
+    throw std::logic_error("sim_node: unknown sensor kind");
+  }
+
   static ros::Time ClockTime(double t) {
     ros::Time c = ToRosTime(t);
     if (c.isZero()) c.fromNSec(1);
@@ -256,13 +280,21 @@ class SimNode {
     return false;
   }
 
-  void SendSyncs() {
+  /// The syncs of a new control period: the delivery order since the previous one.
+  void MakeSyncs() {
     for (VehicleIo& io : io_) {
-      fnmpc_ros::SimSync s;
+      fnmpc_ros::SimSync& s = io.sync_msg;
       s.header.stamp = current_stamp_;
       s.measurements = io.seq;
-      io.sync.publish(s);
+      s.first = io.seq - io.order.size();
+      s.order.swap(io.order);
+      io.order.clear();
     }
+  }
+
+  /// Publishes (or, during start-up, repeats) this period's syncs.
+  void SendSyncs() {
+    for (VehicleIo& io : io_) io.sync.publish(io.sync_msg);
   }
 
   /// The emulated autopilot's failsafe for a vehicle whose node went silent: level attitude,

@@ -6,9 +6,10 @@
 // controller is built by app::ControllerConfigFor exactly as `fnmpc run` builds it.
 //
 // Two timing modes (docs/ros.md):
-//  * lockstep (simulation): measurements are buffered; on each SimSync from sim_node the
-//    node waits until it has received every measurement the sync counts, feeds them in the
-//    simulator's delivery order (header.seq), runs Control(t_sync) and answers with a
+//  * lockstep (simulation): measurements are buffered per topic; on each SimSync from
+//    sim_node the node waits until it has received every measurement the sync counts, feeds
+//    them in the simulator's delivery order (SimSync::order: the kind of each measurement
+//    in delivery order; each topic is FIFO), runs Control(t_sync) and answers with a
 //    setpoint stamped t_sync. Deterministic, the same order as the CLI's closed loop.
 //  * free-running (flight): each measurement goes to the estimators on arrival; a timer on
 //    ROS time (wall or /clock) runs Control every sample_time.
@@ -17,6 +18,8 @@
 #include <ros/ros.h>
 
 #include <algorithm>
+#include <array>
+#include <deque>
 #include <memory>
 #include <vector>
 
@@ -27,6 +30,13 @@
 
 namespace fnmpc::ros_bridge {
 namespace {
+
+static_assert(fnmpc_ros::SimSync::MOCAP_POSE == static_cast<int>(SensorKind::kMocapPose));
+static_assert(fnmpc_ros::SimSync::IMU == static_cast<int>(SensorKind::kImu));
+static_assert(fnmpc_ros::SimSync::OPTICAL_FLOW == static_cast<int>(SensorKind::kOpticalFlow));
+static_assert(fnmpc_ros::SimSync::COMPASS == static_cast<int>(SensorKind::kCompass));
+static_assert(fnmpc_ros::SimSync::BATTERY == static_cast<int>(SensorKind::kBattery));
+static_assert(fnmpc_ros::SimSync::RELATIVE == static_cast<int>(SensorKind::kRelative));
 
 class VehicleNode {
  public:
@@ -72,31 +82,25 @@ class VehicleNode {
     const int q = 1000;
     auto hints = ros::TransportHints().tcpNoDelay();
     subs_.push_back(nh_.subscribe<geometry_msgs::PoseStamped>(
-        topics::kMocapPose, q,
-        [this](const auto& m) { Receive(FromPose(*m, index_), m->header.seq); }, {}, hints));
-    subs_.push_back(nh_.subscribe<sensor_msgs::Imu>(
-        topics::kImu, q, [this](const auto& m) { Receive(FromImu(*m, index_), m->header.seq); }, {},
+        topics::kMocapPose, q, [this](const auto& m) { Receive(FromPose(*m, index_)); }, {},
         hints));
+    subs_.push_back(nh_.subscribe<sensor_msgs::Imu>(
+        topics::kImu, q, [this](const auto& m) { Receive(FromImu(*m, index_)); }, {}, hints));
     subs_.push_back(nh_.subscribe<fnmpc_ros::OpticalFlow>(
-        topics::kOpticalFlow, q,
-        [this](const auto& m) { Receive(FromOpticalFlow(*m, index_), m->header.seq); }, {}, hints));
+        topics::kOpticalFlow, q, [this](const auto& m) { Receive(FromOpticalFlow(*m, index_)); },
+        {}, hints));
     subs_.push_back(nh_.subscribe<fnmpc_ros::Heading>(
-        topics::kCompass, q,
-        [this](const auto& m) { Receive(FromHeading(*m, index_), m->header.seq); }, {}, hints));
+        topics::kCompass, q, [this](const auto& m) { Receive(FromHeading(*m, index_)); }, {},
+        hints));
     subs_.push_back(nh_.subscribe<sensor_msgs::BatteryState>(
-        topics::kBattery, q,
-        [this](const auto& m) { Receive(FromBattery(*m, index_), m->header.seq); }, {}, hints));
+        topics::kBattery, q, [this](const auto& m) { Receive(FromBattery(*m, index_)); }, {},
+        hints));
     subs_.push_back(nh_.subscribe<fnmpc_ros::RelativeMeasurement>(
-        topics::kRelative, q,
-        [this](const auto& m) { Receive(FromRelative(*m, index_), m->header.seq); }, {}, hints));
+        topics::kRelative, q, [this](const auto& m) { Receive(FromRelative(*m, index_)); }, {},
+        hints));
     if (lockstep_) {
       sync_sub_ = nh_.subscribe<fnmpc_ros::SimSync>(
-          topics::kSync, 10,
-          [this](const auto& m) {
-            pending_sync_ = *m;
-            has_sync_ = true;
-          },
-          {}, hints);
+          topics::kSync, 10, [this](const auto& m) { syncs_.push_back(*m); }, {}, hints);
     } else {
       timer_ = nh_.createTimer(ros::Duration(scenario_.sample_time),
                                [this](const ros::TimerEvent&) { Step(ros::Time::now().toSec()); });
@@ -106,41 +110,90 @@ class VehicleNode {
              lockstep_ ? "lockstep with sim_node" : "free-running on ROS time");
   }
 
-  /// Lockstep: answers a pending sync once its measurements are all here.
+  /// Lockstep: answers the pending syncs, in turn, once their measurements are all here.
   void Poll() {
-    if (!lockstep_ || !has_sync_) return;
-    const double t = ToSec(pending_sync_.header.stamp);
-    if (t == last_answered_) {  // a repeated sync (start-up handshake): repeat the answer
-      has_sync_ = false;
-      setpoint_pub_.publish(last_setpoint_);
-      return;
+    while (lockstep_ && !syncs_.empty()) {
+      const fnmpc_ros::SimSync& sync = syncs_.front();
+      const double t = ToSec(sync.header.stamp);
+      if (t == last_answered_) {  // a repeated sync (start-up handshake): repeat the answer
+        syncs_.pop_front();
+        setpoint_pub_.publish(last_setpoint_);
+        continue;
+      }
+      if (t < last_answered_) {  // an older period (a stalled node catching up): answered
+        syncs_.pop_front();
+        continue;
+      }
+      if (received_ < sync.measurements) return;  // still in flight
+      // Do not answer before every sensor subscription is connected, or measurements
+      // published before the connection would be lost (sim_node repeats the first sync).
+      for (const auto& s : subs_) {
+        if (s.getNumPublishers() == 0) return;
+      }
+      Fuse(sync, t);
+      syncs_.pop_front();
+      Step(t);
     }
-    if (received_ < pending_sync_.measurements) return;  // still in flight
-    // Do not answer before every sensor subscription is connected, or measurements
-    // published before the connection would be lost (sim_node repeats the first sync).
-    for (const auto& s : subs_) {
-      if (s.getNumPublishers() == 0) return;
-    }
-    has_sync_ = false;
-    std::sort(buffer_.begin(), buffer_.end(),
-              [](const auto& a, const auto& b) { return a.first < b.first; });
-    for (auto& [seq, m] : buffer_) {
-      m.arrival = t;
-      controller_->Process(m);
-    }
-    buffer_.clear();
-    Step(t);
   }
 
  private:
-  void Receive(Measurement m, std::uint32_t seq) {
+  void Receive(Measurement m) {
     if (lockstep_) {
-      buffer_.emplace_back(seq, m);
+      // SimSync kinds are SensorKind's values (static_asserts below).
+      queues_.at(static_cast<std::size_t>(m.kind)).push_back(m);
       ++received_;
     } else {
       m.arrival = ros::Time::now().toSec();
       controller_->Process(m);
     }
+  }
+
+  /// Feeds the measurements a sync covers to the controller in the simulator's delivery
+  /// order: sync.order[i] is the kind of measurement sync.first + i, and each topic's
+  /// messages arrive in publication order (one TCP stream per topic).
+  void Fuse(const fnmpc_ros::SimSync& sync, double t) {
+    std::array<std::size_t, kNumSensorKinds> need{};
+    for (const std::uint8_t k : sync.order) {
+      if (k >= kNumSensorKinds) throw std::runtime_error("SimSync: unknown sensor kind");
+      ++need[k];
+    }
+    for (std::size_t k = 0; k < need.size(); ++k) {
+      if (queues_[k].size() < need[k]) {
+        throw std::runtime_error("SimSync at t = " + std::to_string(t) + " orders " +
+                                 std::to_string(need[k]) + " measurements of kind " +
+                                 std::to_string(k) + ", only " + std::to_string(queues_[k].size()) +
+                                 " received");
+      }
+    }
+    // Measurements of periods whose syncs were dropped (a node stalled for more than the
+    // sync queue): their order is unknown, they go first, by time of validity.
+    if (fused_ < sync.first) {
+      const std::uint64_t gap = sync.first - fused_;
+      ROS_WARN(
+          "vehicle_node %s: %llu measurements before t = %.3f s without a delivery order "
+          "(syncs lost), fused by time of validity",
+          name_.c_str(), static_cast<unsigned long long>(gap), t);
+      for (std::uint64_t n = 0; n < gap; ++n) {
+        std::size_t best = queues_.size();
+        for (std::size_t k = 0; k < queues_.size(); ++k) {
+          if (queues_[k].size() <= need[k]) continue;
+          if (best == queues_.size() || queues_[k].front().stamp < queues_[best].front().stamp) {
+            best = k;
+          }
+        }
+        if (best == queues_.size()) break;
+        Fuse(&queues_[best], t);
+      }
+    }
+    for (const std::uint8_t k : sync.order) Fuse(&queues_[k], t);
+  }
+
+  void Fuse(std::deque<Measurement>* queue, double t) {
+    Measurement m = queue->front();
+    queue->pop_front();
+    m.arrival = t;
+    controller_->Process(m);
+    ++fused_;
   }
 
   void Step(double t) {
@@ -186,10 +239,9 @@ class VehicleNode {
   ros::Subscriber sync_sub_;
   ros::Timer timer_;
   // Lockstep state.
-  std::vector<std::pair<std::uint32_t, Measurement>> buffer_;
-  std::uint64_t received_ = 0;
-  fnmpc_ros::SimSync pending_sync_;
-  bool has_sync_ = false;
+  std::array<std::deque<Measurement>, kNumSensorKinds> queues_;  // per SensorKind, FIFO
+  std::uint64_t received_ = 0, fused_ = 0;
+  std::deque<fnmpc_ros::SimSync> syncs_;
   double last_answered_ = kNaN;
   fnmpc_ros::AttitudeThrustSetpoint last_setpoint_;
 };
