@@ -93,6 +93,7 @@ struct NmpcInput {
   // Collision avoidance: the nearest sensed vehicles, relative position (p_o - p_self) and
   // velocity; slots beyond `obstacles` are unused.
   std::array<Vec3, kObstacleSlots> obstacle_rel{}, obstacle_vel{};
+  std::array<Vec3, kObstacleSlots> obstacle_normal{};  // unit, from self towards the obstacle
   int obstacles = 0;
 };
 
@@ -226,10 +227,13 @@ class LeaderCore final : public NmpcCore {
       Solver::P& p = params_[k];
       p[0] = yaw_ref_;
       for (int o = 0; o < kObstacleSlots; ++o) {
+        if (o >= in.obstacles) {
+          Base::SetUnused(o, &p);
+          continue;
+        }
         p.segment<3>(Base::ParamObstacle(o)) =
-            o < in.obstacles
-                ? Vec3(in.position + in.obstacle_rel[o] + (k * ts) * in.obstacle_vel[o])
-                : Base::Unused();
+            in.position + in.obstacle_rel[o] + (k * ts) * in.obstacle_vel[o];
+        p.segment<3>(Base::ParamNormal(o)) = in.obstacle_normal[o];
       }
       solver_.SetParameters(k, p);
     }
@@ -392,9 +396,13 @@ class FollowerCore final : public NmpcCore {
         hi = hi.cwiseMin(cj + b);
       }
       for (int o = 0; o < kObstacleSlots; ++o) {
+        if (o >= in.obstacles) {
+          Base::SetUnused(o, &p);
+          continue;
+        }
         p.template segment<3>(Base::ParamObstacle(o)) =
-            o < in.obstacles ? Vec3(in.obstacle_rel[o] + (k * ts) * in.obstacle_vel[o])
-                             : Base::Unused();
+            in.obstacle_rel[o] + (k * ts) * in.obstacle_vel[o];
+        p.template segment<3>(Base::ParamNormal(o)) = in.obstacle_normal[o];
       }
       if (height_known) {
         lo.z() = std::max(lo.z(), c_.safety.min_altitude - in.height);
@@ -722,17 +730,19 @@ void VehicleController::NearestObstacles(double t, Input* in) const {
       dist[pos] = dist[pos - 1];
       in->obstacle_rel[pos] = in->obstacle_rel[pos - 1];
       in->obstacle_vel[pos] = in->obstacle_vel[pos - 1];
+      in->obstacle_normal[pos] = in->obstacle_normal[pos - 1];
     }
     dist[pos] = d;
-    // Passing rule (right-hand traffic, without communication): each vehicle sees the other
-    // shifted to its left, so that two vehicles heading at each other both dodge to their
-    // right instead of mirroring each other's manoeuvre (a symmetric head-on encounter
-    // otherwise makes both dodge the same way: down, up, or not at all).
+    in->obstacle_rel[pos] = x.head<3>();
+    in->obstacle_vel[pos] = x.segment<3>(3);
+    // Separating plane through the current geometry, its normal tilted to the observer's
+    // left (a right-hand passing rule without communication): two vehicles heading at each
+    // other both give way to their right instead of mirroring each other's manoeuvre.
     const Vec3 rel = x.head<3>();
     const double h = rel.head<2>().norm();
     const Vec3 left = h > 1e-6 ? Vec3(-rel.y() / h, rel.x() / h, 0.0) : Vec3::Zero();
-    in->obstacle_rel[pos] = rel + kPassingShift * config_.safety.collision_radius * left;
-    in->obstacle_vel[pos] = x.segment<3>(3);
+    const Vec3 n = rel + kPassingShift * config_.safety.collision_radius * left;
+    in->obstacle_normal[pos] = n.norm() > 1e-9 ? Vec3(n.normalized()) : Vec3(0.0, 0.0, 1.0);
   };
   for (std::size_t j = 0; j < estimates_.neighbours.size(); ++j) {
     offer(estimates_.neighbours[j], neighbour_seen_[j]);

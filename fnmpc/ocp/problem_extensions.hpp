@@ -15,18 +15,21 @@
 namespace fnmpc::ocp {
 
 /// Soft collision avoidance against `Slots` obstacles: one residual row per obstacle o,
-///   e_o = min(0, |c_o - p| - r_min),
-/// a one-sided quadratic penalty that is zero outside the radius and that Gauss-Newton
-/// linearises at every iteration (a soft, non-convex constraint inside the OCP). p is the
-/// position block of the wrapped problem's state (Model::kPos, in the frame of its
-/// parameters); c_o are stage parameters appended after the wrapped problem's; an unused slot
-/// is placed far away. Appended to the stage and terminal residuals.
+///   e_o = min(0, n_o . (c_o - p) - r_min),
+/// a one-sided quadratic penalty on entering the half-space within r_min of obstacle o along
+/// the unit normal n_o (a separating plane through the linearisation, fixed over the horizon
+/// so that predicted paths that cross do not flip the gradient; the caller re-linearises it
+/// at every sampling time from the current relative position). Gauss-Newton linearises it at
+/// every iteration: a soft constraint inside the OCP. p is the position block of the wrapped
+/// problem's state (Model::kPos, in the frame of its parameters); c_o and n_o are stage
+/// parameters appended after the wrapped problem's; an unused slot is far away. Appended to
+/// the stage and terminal residuals.
 template <class P, int Slots>
 struct WithObstacles {
   using Model = typename P::Model;
   static constexpr int kSlots = Slots;
   static constexpr int kNx = P::kNx, kNu = P::kNu, kNy = P::kNy + Slots, kNyN = P::kNyN + Slots,
-                       kNp = P::kNp + 3 * Slots;
+                       kNp = P::kNp + 6 * Slots;
   static constexpr int kPos = Model::kPos;
   P base;
   model::AttitudeModelParams params;
@@ -35,10 +38,15 @@ struct WithObstacles {
   explicit WithObstacles(const P& p = P{}, double r_min = 0.45)
       : base(p), params(p.params), radius(r_min) {}
 
-  /// Offset of obstacle o's position in p.
-  static constexpr int ParamObstacle(int o) { return P::kNp + 3 * o; }
-  /// A position for an unused slot: far outside any radius.
-  static Vec3 Unused() { return Vec3(0.0, 0.0, 1e4); }
+  /// Offsets of obstacle o's position c_o and of its unit normal n_o in p.
+  static constexpr int ParamObstacle(int o) { return P::kNp + 6 * o; }
+  static constexpr int ParamNormal(int o) { return P::kNp + 6 * o + 3; }
+  /// Writes an unused slot into p: far outside any radius along its normal.
+  template <class Pv>
+  static void SetUnused(int o, Pv* p) {
+    p->template segment<3>(ParamObstacle(o)) = Vec3(0.0, 0.0, 1e4);
+    p->template segment<3>(ParamNormal(o)) = Vec3(0.0, 0.0, 1.0);
+  }
 
   void StageResidual(const Vec<kNx>& x, const Vec<kNu>& u, const Vec<kNp>& p, Vec<kNy>* y,
                      Mat<kNy, kNx>* yx, Mat<kNy, kNu>* yu) const {
@@ -76,14 +84,13 @@ struct WithObstacles {
   template <class Yv, class Jx>
   void Rows(const Vec<kNx>& x, const Vec<kNp>& p, int row0, Yv* y, Jx* yx) const {
     for (int o = 0; o < Slots; ++o) {
-      const Vec3 d = p.template segment<3>(ParamObstacle(o)) - x.template segment<3>(kPos);
-      const double dist = d.norm();
-      const bool active = dist < radius;
-      (*y)[row0 + o] = active ? dist - radius : 0.0;
+      const Vec3 n = p.template segment<3>(ParamNormal(o));
+      const double gap =
+          n.dot(p.template segment<3>(ParamObstacle(o)) - x.template segment<3>(kPos));
+      const bool active = gap < radius;
+      (*y)[row0 + o] = active ? gap - radius : 0.0;
       if (yx == nullptr) continue;
-      // d dist / d pos = -d / |d| (any unit vector when the centres coincide).
-      const Vec3 g =
-          !active ? Vec3::Zero() : (dist > 1e-9 ? Vec3(-d / dist) : Vec3(0.0, 0.0, -1.0));
+      const Vec3 g = active ? Vec3(-n) : Vec3(Vec3::Zero());  // d gap / d p = -n
       yx->template block<1, 3>(row0 + o, kPos) = g.transpose();
     }
   }

@@ -67,8 +67,10 @@ TEST(ProblemExtensionsTest, JacobiansMatchFiniteDifferences) {
     for (int i = 0; i < Full::kNp; ++i) p[i] = 3.0 * U(rng);
     // Obstacle 0 inside the radius (active), 1 outside, 2 unused.
     p.segment<3>(Obst::ParamObstacle(0)) = x.head<3>() + Vec3(0.2, -0.1, 0.05);
+    p.segment<3>(Obst::ParamNormal(0)) = Vec3(0.2, -0.1, 0.05).normalized();
     p.segment<3>(Obst::ParamObstacle(1)) = x.head<3>() + Vec3(1.0, 0.4, 0.0);
-    p.segment<3>(Obst::ParamObstacle(2)) = Obst::Unused();
+    p.segment<3>(Obst::ParamNormal(1)) = Vec3(1.0, 0.4, 0.0).normalized();
+    Obst::SetUnused(2, &p);
     CheckJacobians(prob, x, u, p);
   }
 }
@@ -83,8 +85,10 @@ TEST(ProblemExtensionsTest, ResidualsExtendTheWrappedProblem) {
   Vec<Full::kNp> p = Vec<Full::kNp>::Zero();
   p.head<ReducedFollowerProblem<2>::kNp>().setConstant(0.7);
   p.segment<3>(Obst::ParamObstacle(0)) = x.head<3>() + Vec3(0.3, 0.0, 0.0);  // 0.2 inside
+  p.segment<3>(Obst::ParamNormal(0)) = Vec3(1.0, 0.0, 0.0);
   p.segment<3>(Obst::ParamObstacle(1)) = x.head<3>() + Vec3(0.0, 0.0, 0.6);  // outside
-  p.segment<3>(Obst::ParamObstacle(2)) = Obst::Unused();
+  p.segment<3>(Obst::ParamNormal(1)) = Vec3(0.0, 0.0, 1.0);
+  Obst::SetUnused(2, &p);
   Vec<Full::kNy> y;
   prob.StageResidual(x, u, p, &y, nullptr, nullptr);
   Vec<ReducedFollowerProblem<2>::kNy> yb;
