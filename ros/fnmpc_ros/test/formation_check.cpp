@@ -10,10 +10,12 @@
 #include <ros/master.h>
 #include <ros/network.h>
 #include <ros/ros.h>
+#include <ros/spinner.h>
 #include <signal.h>
 #include <xmlrpcpp/XmlRpcClient.h>
 
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -25,6 +27,7 @@
 #include "apps/fnmpc/scenario_runner.hpp"
 #include "conversions.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc_ros/SimSync.h"
 
 namespace fnmpc::ros_bridge {
 namespace {
@@ -67,8 +70,9 @@ struct Observed {
   std::vector<double> drop_time;
   std::vector<int> min_active_after_kill;
   std::vector<int> last_active;
-  bool killed = false;
-  int killed_pid = -1;
+  std::atomic<bool> killed{false};
+  std::atomic<int> killed_pid{-1};
+  std::atomic<double> kill_stamp{kNaN};      // the sync stamp at which the node was killed
   std::map<std::string, bool> alive_at_end;  // node name -> alive
   nlohmann::json cli_summary;
   int cli_rc = -1;
@@ -164,6 +168,38 @@ void Watch() {
         }));
   }
 
+  // The kill: on the victim's own SimSync for the first period at or after kill_time, in a
+  // callback thread of its own (the truth above is processed in batches, behind the sim), so
+  // the node dies within about one control period of kill_time.
+  ros::CallbackQueue kill_queue;
+  ros::AsyncSpinner kill_spinner(1, &kill_queue);
+  ros::Subscriber kill_sub;
+  if (killed_index >= 0) {
+    ros::SubscribeOptions o = ros::SubscribeOptions::create<fnmpc_ros::SimSync>(
+        "/" + g_settings.kill_vehicle + "/" + topics::kSync, 10,
+        [](const fnmpc_ros::SimSync::ConstPtr& m) {
+          static int pid = -1;
+          if (g_obs.killed) return;
+          if (pid <= 0) pid = NodePid(VehicleNodeName(g_settings.kill_vehicle));
+          const double t = m->header.stamp.toSec();
+          if (t < g_settings.kill_time) return;
+          if (pid > 0 && ::kill(pid, SIGKILL) == 0) {
+            g_obs.killed_pid = pid;
+            g_obs.kill_stamp = t;
+            g_obs.killed = true;
+            ROS_WARN("formation_check: killed %s (pid %d) on its sync for t = %.2f s",
+                     VehicleNodeName(g_settings.kill_vehicle).c_str(), pid, t);
+          } else {
+            ROS_ERROR("formation_check: could not kill %s",
+                      VehicleNodeName(g_settings.kill_vehicle).c_str());
+          }
+        },
+        ros::VoidConstPtr(), &kill_queue);
+    o.transport_hints = ros::TransportHints().tcpNoDelay();
+    kill_sub = nh.subscribe(o);
+    kill_spinner.start();
+  }
+
   const ros::WallTime start = ros::WallTime::now();
   while (ros::ok() && !g_obs.completed &&
          (ros::WallTime::now() - start).toSec() < g_settings.wall_timeout) {
@@ -210,18 +246,6 @@ void Watch() {
             ++n;
           }
           if (n > 0) g_obs.pair_after_kill[i].push_back(sum / n);
-        }
-      }
-      if (killed_index >= 0 && !g_obs.killed && t >= g_settings.kill_time) {
-        const int pid = NodePid(VehicleNodeName(g_settings.kill_vehicle));
-        if (pid > 0 && ::kill(pid, SIGKILL) == 0) {
-          g_obs.killed = true;
-          g_obs.killed_pid = pid;
-          ROS_WARN("formation_check: killed %s (pid %d) at t = %.2f s",
-                   VehicleNodeName(g_settings.kill_vehicle).c_str(), pid, t);
-        } else {
-          ROS_ERROR("formation_check: could not kill %s",
-                    VehicleNodeName(g_settings.kill_vehicle).c_str());
         }
       }
       if (t >= g_settings.duration - 1e-9) g_obs.completed = true;
