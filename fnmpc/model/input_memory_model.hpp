@@ -37,6 +37,30 @@ struct InputMemoryModel {
     next.template tail<kNu>() = u;
     return next;
   }
+
+  // Products with A = diag(A_base, 0) by the base model's structured products (Base must
+  // have them: QuadrotorModel; see rti::detail::HasStructuredTransition).
+  template <class MA, class In, class Out>
+  static void MultiplyTransition(const MA& a, const In& in, Out* out) {
+    auto top = out->template topRows<kNxBase>();
+    Base::MultiplyTransition(a.template topLeftCorner<kNxBase, kNxBase>(),
+                             in.template topRows<kNxBase>(), &top);
+    out->template bottomRows<kNu>().setZero();
+  }
+  template <class In, class MA, class Out>
+  static void MultiplyTransitionRight(const In& in, const MA& a, Out* out) {
+    auto left = out->template leftCols<kNxBase>();
+    Base::MultiplyTransitionRight(in.template leftCols<kNxBase>(),
+                                  a.template topLeftCorner<kNxBase, kNxBase>(), &left);
+    out->template rightCols<kNu>().setZero();
+  }
+  template <class MA, class In, class Out>
+  static void MultiplyTransitionTransposed(const MA& a, const In& in, Out* out) {
+    auto top = out->template topRows<kNxBase>();
+    Base::MultiplyTransitionTransposed(a.template topLeftCorner<kNxBase, kNxBase>(),
+                                       in.template topRows<kNxBase>(), &top);
+    out->template bottomRows<kNu>().setZero();
+  }
 };
 
 }  // namespace fnmpc::model

@@ -113,50 +113,53 @@ struct QuadrotorModel {
   ///   [[I, dt I, Ap], [0, I, Av], [0, 0, diag(a)]]   (blocks p, v, angles; dt = A(0, 3)),
   /// which condensing does O(N^2) times: 90 multiply-adds for a 9 x 3 operand where the
   /// dense product takes 243. out = A in (out must not alias in).
-  template <class In, class Out>
-  static void MultiplyTransition(const Mat<kNx, kNx>& a, const In& in, Out* out);
+  /// (a: the 9 x 9 transition matrix or a block expression of one.)
+  template <class MA, class In, class Out>
+  static void MultiplyTransition(const MA& a, const In& in, Out* out);
   /// out = in A (out must not alias in).
-  template <class In, class Out>
-  static void MultiplyTransitionRight(const In& in, const Mat<kNx, kNx>& a, Out* out);
+  template <class In, class MA, class Out>
+  static void MultiplyTransitionRight(const In& in, const MA& a, Out* out);
   /// out = A' in (out must not alias in).
-  template <class In, class Out>
-  static void MultiplyTransitionTransposed(const Mat<kNx, kNx>& a, const In& in, Out* out);
+  template <class MA, class In, class Out>
+  static void MultiplyTransitionTransposed(const MA& a, const In& in, Out* out);
 };
 
-template <class In, class Out>
-void QuadrotorModel::MultiplyTransitionTransposed(const Mat<kNx, kNx>& a, const In& in, Out* out) {
+template <class MA, class In, class Out>
+void QuadrotorModel::MultiplyTransitionTransposed(const MA& a, const In& in, Out* out) {
   const double dt = a(kPos, kVel);
   const auto pos = in.template middleRows<3>(kPos);
   const auto vel = in.template middleRows<3>(kVel);
   out->template middleRows<3>(kPhi) =
-      a.diagonal().tail<3>().asDiagonal() * in.template middleRows<3>(kPhi);
-  out->template middleRows<3>(kPhi).noalias() += a.block<3, 3>(kPos, kPhi).transpose() * pos;
-  out->template middleRows<3>(kPhi).noalias() += a.block<3, 3>(kVel, kPhi).transpose() * vel;
+      a.diagonal().template tail<3>().asDiagonal() * in.template middleRows<3>(kPhi);
+  out->template middleRows<3>(kPhi).noalias() +=
+      a.template block<3, 3>(kPos, kPhi).transpose() * pos;
+  out->template middleRows<3>(kPhi).noalias() +=
+      a.template block<3, 3>(kVel, kPhi).transpose() * vel;
   out->template middleRows<3>(kVel) = vel + dt * pos;
   out->template middleRows<3>(kPos) = pos;
 }
 
-template <class In, class Out>
-void QuadrotorModel::MultiplyTransition(const Mat<kNx, kNx>& a, const In& in, Out* out) {
+template <class MA, class In, class Out>
+void QuadrotorModel::MultiplyTransition(const MA& a, const In& in, Out* out) {
   const double dt = a(kPos, kVel);
   const auto ang = in.template middleRows<3>(kPhi);
   out->template middleRows<3>(kPos) =
       in.template middleRows<3>(kPos) + dt * in.template middleRows<3>(kVel);
-  out->template middleRows<3>(kPos).noalias() += a.block<3, 3>(kPos, kPhi) * ang;
+  out->template middleRows<3>(kPos).noalias() += a.template block<3, 3>(kPos, kPhi) * ang;
   out->template middleRows<3>(kVel) = in.template middleRows<3>(kVel);
-  out->template middleRows<3>(kVel).noalias() += a.block<3, 3>(kVel, kPhi) * ang;
-  out->template middleRows<3>(kPhi) = a.diagonal().tail<3>().asDiagonal() * ang;
+  out->template middleRows<3>(kVel).noalias() += a.template block<3, 3>(kVel, kPhi) * ang;
+  out->template middleRows<3>(kPhi) = a.diagonal().template tail<3>().asDiagonal() * ang;
 }
 
-template <class In, class Out>
-void QuadrotorModel::MultiplyTransitionRight(const In& in, const Mat<kNx, kNx>& a, Out* out) {
+template <class In, class MA, class Out>
+void QuadrotorModel::MultiplyTransitionRight(const In& in, const MA& a, Out* out) {
   const double dt = a(kPos, kVel);
   const auto pos = in.template middleCols<3>(kPos);
   const auto vel = in.template middleCols<3>(kVel);
   out->template middleCols<3>(kPhi) =
-      in.template middleCols<3>(kPhi) * a.diagonal().tail<3>().asDiagonal();
-  out->template middleCols<3>(kPhi).noalias() += pos * a.block<3, 3>(kPos, kPhi);
-  out->template middleCols<3>(kPhi).noalias() += vel * a.block<3, 3>(kVel, kPhi);
+      in.template middleCols<3>(kPhi) * a.diagonal().template tail<3>().asDiagonal();
+  out->template middleCols<3>(kPhi).noalias() += pos * a.template block<3, 3>(kPos, kPhi);
+  out->template middleCols<3>(kPhi).noalias() += vel * a.template block<3, 3>(kVel, kPhi);
   out->template middleCols<3>(kVel) = vel + dt * pos;
   out->template middleCols<3>(kPos) = pos;
 }
