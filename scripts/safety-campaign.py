@@ -26,6 +26,7 @@ import sys
 SCENARIOS = [
     ("stacked", 20),
     ("wedge10-fast", 1),
+    ("swap", 3),
     ("leader-lands-early", 3),
     ("relative-1hz", 3),
     ("dropouts-40", 3),
