@@ -4,30 +4,15 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <fstream>
-#include <sstream>
 #include <string>
 
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "scenario_text.hpp"
 
 namespace fnmpc::config {
 namespace {
 
-const std::string kDir = std::string(FNMPC_SOURCE_DIR) + "/config/scenarios/";
-
-std::string Triangle() {
-  std::ifstream f(kDir + "triangle.yaml");
-  std::stringstream s;
-  s << f.rdbuf();
-  std::string text = s.str();
-  const std::string root = std::string(FNMPC_SOURCE_DIR) + "/config/";
-  for (const std::string key : {"vehicles/", "sensors/"}) {
-    const std::string rel = "../" + key;
-    for (std::size_t p = text.find(rel); p != std::string::npos; p = text.find(rel))
-      text.replace(p, rel.size(), root + key);
-  }
-  return text;
-}
+std::string Triangle() { return test::ShippedScenarioText("triangle.yaml"); }
 
 ScenarioConfig Parse(const std::string& faults) {
   return ParseScenario(YamlMap::LoadString(Triangle() + faults, "s.yaml"));
@@ -126,16 +111,7 @@ TEST(ScenarioFaultsYamlTest, BadValuesNameFileLineAndKey) {
 }
 
 TEST(ScenarioFaultsYamlTest, ManualLeaderHasNoControllerToKill) {
-  std::ifstream f(kDir + "manual-leader.yaml");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  std::string text = ss.str();
-  const std::string root = std::string(FNMPC_SOURCE_DIR) + "/config/";
-  for (const std::string key : {"vehicles/", "sensors/"}) {
-    const std::string rel = "../" + key;
-    for (std::size_t p = text.find(rel); p != std::string::npos; p = text.find(rel))
-      text.replace(p, rel.size(), root + key);
-  }
+  const std::string text = test::ShippedScenarioText("manual-leader.yaml");
   try {
     ParseScenario(YamlMap::LoadString(
         text + "faults:\n  kill_controller: {vehicle: leader, time: 20}\n", "m.yaml"));

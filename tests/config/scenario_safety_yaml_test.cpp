@@ -3,41 +3,25 @@
 // file, line and key.
 #include <gtest/gtest.h>
 
-#include <fstream>
-#include <sstream>
 #include <string>
 
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "scenario_text.hpp"
 
 namespace fnmpc::config {
 namespace {
 
-const std::string kDir = std::string(FNMPC_SOURCE_DIR) + "/config/scenarios/";
-
-std::string Triangle() {
-  std::ifstream f(kDir + "triangle.yaml");
-  std::stringstream s;
-  s << f.rdbuf();
-  std::string text = s.str();
-  // Absolute file paths: the text is parsed without a directory.
-  const std::string root = std::string(FNMPC_SOURCE_DIR) + "/config/";
-  for (const std::string key : {"vehicles/", "sensors/"}) {
-    const std::string rel = "../" + key;
-    for (std::size_t p = text.find(rel); p != std::string::npos; p = text.find(rel))
-      text.replace(p, rel.size(), root + key);
-  }
-  return text;
-}
+std::string Triangle() { return test::ShippedScenarioText("triangle.yaml"); }
 
 TEST(ScenarioSafetyYamlTest, DefaultsAndEveryKeyMapped) {
   const ScenarioConfig d = ParseScenario(YamlMap::LoadString(Triangle(), "s.yaml"));
-  EXPECT_EQ(d.safety.recovery.fallbacks_before_reinit, formation::RecoveryConfig{}.fallbacks_before_reinit);
+  EXPECT_EQ(d.safety.recovery.fallbacks_before_reinit,
+            formation::RecoveryConfig{}.fallbacks_before_reinit);
   const ScenarioConfig s = ParseScenario(YamlMap::LoadString(
-      Triangle() +
-          "safety:\n  min_altitude: 0.4\n  max_altitude: 4.0\n  neighbour_timeout: 2.0\n"
-          "  neighbour_reacquire_time: 0.25\n  recovery:\n    fallbacks_before_reinit: 5\n"
-          "    max_reinitialisations: 1\n    estimate_timeout: 0.7\n"
-          "    failsafe_hold_time: 2.5\n    failsafe_descent_speed: 0.6\n",
+      Triangle() + "safety:\n  min_altitude: 0.4\n  max_altitude: 4.0\n  neighbour_timeout: 2.0\n"
+                   "  neighbour_reacquire_time: 0.25\n  recovery:\n    fallbacks_before_reinit: 5\n"
+                   "    max_reinitialisations: 1\n    estimate_timeout: 0.7\n"
+                   "    failsafe_hold_time: 2.5\n    failsafe_descent_speed: 0.6\n",
       "s.yaml"));
   EXPECT_DOUBLE_EQ(s.safety.min_altitude, 0.4);
   EXPECT_DOUBLE_EQ(s.safety.max_altitude, 4.0);
