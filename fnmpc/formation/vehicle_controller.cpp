@@ -754,24 +754,21 @@ void VehicleController::NearestObstacles(double t, Input* in) const {
 ControlOutput VehicleController::Control(double t) {
   estimates_.own = ekf_.initialized() ? ekf_.Estimate(t) : estimation::VehicleEstimate{};
   const estimation::VehicleEstimate& own = estimates_.own;
-  for (std::size_t j = 0; j < neighbour_ekfs_.size(); ++j) {
-    auto& f = neighbour_ekfs_[j];
-    if (f.initialized() && own.valid && own.velocity.allFinite()) {
-      f.PredictTo(t, own.velocity);
-      estimates_.neighbours[j] = f.StateAt(t, own.velocity);
-    } else {
-      estimates_.neighbours[j].setConstant(kNaN);
+  // Every tracked vehicle predicted to t (NaN while its filter has nothing to go on).
+  const auto predict = [&](std::vector<estimation::NeighbourEkf>& filters,
+                           std::vector<estimation::NeighbourStateVec>& out) {
+    for (std::size_t j = 0; j < filters.size(); ++j) {
+      auto& f = filters[j];
+      if (f.initialized() && own.valid && own.velocity.allFinite()) {
+        f.PredictTo(t, own.velocity);
+        out[j] = f.StateAt(t, own.velocity);
+      } else {
+        out[j].setConstant(kNaN);
+      }
     }
-  }
-  for (std::size_t j = 0; j < other_ekfs_.size(); ++j) {
-    auto& f = other_ekfs_[j];
-    if (f.initialized() && own.valid && own.velocity.allFinite()) {
-      f.PredictTo(t, own.velocity);
-      estimates_.others[j] = f.StateAt(t, own.velocity);
-    } else {
-      estimates_.others[j].setConstant(kNaN);
-    }
-  }
+  };
+  predict(neighbour_ekfs_, estimates_.neighbours);
+  predict(other_ekfs_, estimates_.others);
   UpdateNeighbourPresence(t);
   CheckVelocityConsistency(t);
   const ControlOutput out = Step(t);
