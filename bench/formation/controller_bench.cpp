@@ -56,5 +56,4 @@ void ControlStep(benchmark::State& state, bool rate, bool close) {
 
 BENCHMARK_CAPTURE(ControlStep, follower2_plain, false, false)->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(ControlStep, follower2_rate, true, false)->Unit(benchmark::kMicrosecond);
-BENCHMARK_CAPTURE(ControlStep, follower2_rate_collision, true, true)
-    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(ControlStep, follower2_rate_collision, true, true)->Unit(benchmark::kMicrosecond);

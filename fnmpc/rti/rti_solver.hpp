@@ -183,8 +183,8 @@ class RtiSolver {
     };
     for (int r = 0; r < kNy; ++r) {
       if (w[r] != 0.0 && !in(weighted_rows_, r))
-        throw std::invalid_argument("[RtiSolver] SetWeightValues: stage row " +
-                                    std::to_string(r) + " is outside the cost pattern");
+        throw std::invalid_argument("[RtiSolver] SetWeightValues: stage row " + std::to_string(r) +
+                                    " is outside the cost pattern");
     }
     for (int r = 0; r < kNyN; ++r) {
       if (w_terminal[r] != 0.0 && !in(weighted_rows_n_, r))
