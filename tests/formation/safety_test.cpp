@@ -21,8 +21,8 @@ using testing::kGround;
 using testing::kTs;
 using testing::Plant;
 
-TEST(MallocCounterTest, SeesDirectAndEigenAllocations) {
-  // The counter must be able to fail: a direct malloc and a dynamic Eigen matrix are seen.
+TEST(MallocCounterTest, SeesDirectEigenAndNewAllocations) {
+  // The counter must be able to fail: a direct malloc and a dynamic Eigen matrix are seen,
   void* volatile p = nullptr;
   EXPECT_EQ(::fnmpc::testing::CountMallocs([&] { p = std::malloc(64); }), 1);
   std::free(p);
@@ -30,6 +30,13 @@ TEST(MallocCounterTest, SeesDirectAndEigenAllocations) {
               Eigen::MatrixXd m(40, 40);
               m.setOnes();
               volatile double s = m.sum();
+              (void)s;
+            }),
+            1);
+  // and so is operator new (std::vector), through the replaced operator new
+  EXPECT_GE(::fnmpc::testing::CountMallocs([] {
+              std::vector<int> v(100, 1);
+              volatile int s = v[50];
               (void)s;
             }),
             1);

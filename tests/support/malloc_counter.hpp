@@ -4,11 +4,16 @@
 // posix_memalign) made from the code linked into the test binary: the test links with
 // -Wl,--wrap=<function> for each (fnmpc_add_malloc_counter in tests/CMakeLists.txt), so the
 // linker routes those calls to the __wrap_ functions below. Unlike a replaced operator new,
-// this also sees Eigen's aligned_malloc and any direct malloc. Include from exactly one
-// translation unit of the test binary.
+// this also sees Eigen's aligned_malloc and any direct malloc. The global operator new is the
+// replacement of allocation_counter.hpp, which calls malloc from this binary, so every new
+// (std::vector, std::string, ...) is counted here too; the library's own operator new in
+// libstdc++ calls malloc inside the shared library, where --wrap does not reach. Include from
+// exactly one translation unit of the test binary.
 
 #include <atomic>
 #include <cstddef>
+
+#include "tests/support/allocation_counter.hpp"
 
 extern "C" {
 void* __real_malloc(std::size_t n);
