@@ -494,16 +494,11 @@ VehicleController::VehicleController(const ControllerConfig& config)
     other_vehicles_.push_back(v);
     other_ekfs_.emplace_back(nc);
   }
-  other_seen_.assign(other_vehicles_.size(), kNaN);
+  other_presence_.assign(other_vehicles_.size(), Presence{});
   const std::size_t nn = config_.neighbours.size();
   estimates_.neighbours.assign(nn, estimation::NeighbourStateVec::Constant(kNaN));
   estimates_.others.assign(other_vehicles_.size(), estimation::NeighbourStateVec::Constant(kNaN));
-  neighbour_seen_.assign(nn, kNaN);
-  neighbour_seen_since_.assign(nn, kNaN);
-  neighbour_active_.assign(nn, 1);
-  neighbour_landed_.assign(nn, 0);
-  neighbour_grounded_since_.assign(nn, kNaN);
-  neighbour_airborne_since_.assign(nn, kNaN);
+  presence_.assign(nn, Presence{});
   // The solver is built here, not at the take-off -> NMPC switch: no allocation in flight.
   if (config_.leader) {
     nmpc_ = std::make_unique<LeaderCore>(config_);
@@ -525,7 +520,6 @@ void VehicleController::Process(const Measurement& m) {
       // The leader fuses mocap; a follower has no absolute position: only the height is
       // kept, for the take-off and landing PID.
       if (config_.leader) ekf_.Process(m);
-      if (!config_.leader && std::isfinite(m.position.z())) mocap_z_ = m.position.z();
       TrackMocapPose(m);
       break;
     case SensorKind::kCompass:
@@ -554,35 +548,34 @@ void VehicleController::Process(const Measurement& m) {
       break;
     case SensorKind::kRelative: {
       if (!ekf_.initialized()) break;
-      for (std::size_t j = 0; j < config_.neighbours.size(); ++j) {
+      // The target's filter: a formation neighbour's or another sensed vehicle's.
+      estimation::NeighbourEkf* filter = nullptr;
+      Presence* presence = nullptr;
+      for (std::size_t j = 0; j < config_.neighbours.size() && !filter; ++j) {
         if (config_.neighbours[j].vehicle != m.relative.target) continue;
-        const estimation::VehicleEstimate e = ekf_.Estimate(m.stamp);
-        const Mat3 cov = e.covariance.block<3, 3>(6, 6);
-        const estimation::EkfStatus st = neighbour_ekfs_[j].Process(m, e.euler, e.velocity, &cov);
-        if (st == estimation::EkfStatus::kAccepted && std::isfinite(m.stamp)) {
-          // A run of acceptances is broken by a gap longer than the reacquisition time.
-          if (!std::isfinite(neighbour_seen_[j]) ||
-              m.stamp - neighbour_seen_[j] > config_.safety.neighbour_reacquire_time) {
-            neighbour_seen_since_[j] = m.stamp;
-          }
-          neighbour_seen_[j] =
-              std::max(m.stamp, std::isfinite(neighbour_seen_[j]) ? neighbour_seen_[j] : m.stamp);
-        }
+        filter = &neighbour_ekfs_[j];
+        presence = &presence_[j];
       }
-      for (std::size_t j = 0; j < other_vehicles_.size(); ++j) {
+      for (std::size_t j = 0; j < other_vehicles_.size() && !filter; ++j) {
         if (other_vehicles_[j] != m.relative.target) continue;
-        const estimation::VehicleEstimate e = ekf_.Estimate(m.stamp);
-        const Mat3 cov = e.covariance.block<3, 3>(6, 6);
-        if (other_ekfs_[j].Process(m, e.euler, e.velocity, &cov) ==
-                estimation::EkfStatus::kAccepted &&
-            std::isfinite(m.stamp)) {
-          other_seen_[j] =
-              std::isfinite(other_seen_[j]) ? std::max(other_seen_[j], m.stamp) : m.stamp;
-        }
+        filter = &other_ekfs_[j];
+        presence = &other_presence_[j];
+      }
+      if (filter == nullptr) break;
+      const estimation::VehicleEstimate e = ekf_.Estimate(m.stamp);
+      const Mat3 cov = e.covariance.block<3, 3>(6, 6);
+      if (filter->Process(m, e.euler, e.velocity, &cov) == estimation::EkfStatus::kAccepted &&
+          std::isfinite(m.stamp)) {
+        presence->Accept(m.stamp, config_.safety.neighbour_reacquire_time);
       }
       break;
     }
   }
+}
+
+void VehicleController::Presence::Accept(double stamp, double max_gap) {
+  if (!std::isfinite(seen) || stamp - seen > max_gap) seen_since = stamp;
+  seen = std::isfinite(seen) ? std::max(seen, stamp) : stamp;
 }
 
 std::int64_t VehicleController::estimator_rejections() const {
@@ -592,6 +585,8 @@ std::int64_t VehicleController::estimator_rejections() const {
     n += ekf_.counters().Total(static_cast<estimation::EkfStatus>(s));
     for (const auto& f : neighbour_ekfs_)
       n += f.counters().Total(static_cast<estimation::EkfStatus>(s));
+    for (const auto& f : other_ekfs_)
+      n += f.counters().Total(static_cast<estimation::EkfStatus>(s));
   }
   return n;
 }
@@ -599,7 +594,7 @@ std::int64_t VehicleController::estimator_rejections() const {
 double VehicleController::Height() const {
   const auto& own = estimates_.own;
   if (config_.leader) return own.valid ? own.position.z() : kNaN;
-  if (std::isfinite(mocap_z_)) return mocap_z_;
+  if (std::isfinite(raw_z_)) return raw_z_;  // follower: the raw mocap height
   return own.valid ? config_.ground_height + own.position.z() : kNaN;
 }
 
@@ -619,30 +614,29 @@ void VehicleController::Blend(double t, double* thrust, double* roll, double* pi
 // neighbour_reacquire_time.
 void VehicleController::UpdateNeighbourPresence(double t) {
   const double z = Height();
-  for (std::size_t j = 0; j < neighbour_active_.size(); ++j) {
-    const double seen = neighbour_seen_[j];
-    const bool fresh = std::isfinite(seen) && t - seen <= config_.safety.neighbour_timeout;
+  const SafetyConfig& sc = config_.safety;
+  for (std::size_t j = 0; j < presence_.size(); ++j) {
+    Presence& p = presence_[j];
+    const bool fresh = std::isfinite(p.seen) && t - p.seen <= sc.neighbour_timeout;
     const double zj = z + estimates_.neighbours[j][2];
     const bool grounded = std::isfinite(zj) && zj < config_.ground_height + kGroundedMargin;
-    if (grounded) {
-      if (!std::isfinite(neighbour_grounded_since_[j])) neighbour_grounded_since_[j] = t;
-    } else {
-      neighbour_grounded_since_[j] = kNaN;
+    if (!grounded) {
+      p.grounded_since = kNaN;
+    } else if (!std::isfinite(p.grounded_since)) {
+      p.grounded_since = t;
     }
-    const bool landed =
-        grounded && t - neighbour_grounded_since_[j] >= config_.safety.neighbour_timeout;
-    if (neighbour_active_[j] && (!fresh || landed) && std::isfinite(nmpc_start_)) {
-      neighbour_active_[j] = 0;
-      neighbour_landed_[j] = landed ? 1 : 0;
-      neighbour_airborne_since_[j] = kNaN;
-    } else if (!neighbour_active_[j] && fresh && !grounded) {
-      if (!std::isfinite(neighbour_airborne_since_[j])) neighbour_airborne_since_[j] = t;
-      const bool run = seen - neighbour_seen_since_[j] >= config_.safety.neighbour_reacquire_time;
-      const bool airborne = !neighbour_landed_[j] || t - neighbour_airborne_since_[j] >=
-                                                         config_.safety.neighbour_reacquire_time;
-      if (run && airborne) neighbour_active_[j] = 1;
+    const bool landed = grounded && t - p.grounded_since >= sc.neighbour_timeout;
+    if (p.active && (!fresh || landed) && std::isfinite(nmpc_start_)) {
+      p.active = false;
+      p.landed = landed;
+      p.airborne_since = kNaN;
+    } else if (!p.active && fresh && !grounded) {
+      if (!std::isfinite(p.airborne_since)) p.airborne_since = t;
+      const bool run = p.seen - p.seen_since >= sc.neighbour_reacquire_time;
+      const bool airborne = !p.landed || t - p.airborne_since >= sc.neighbour_reacquire_time;
+      if (run && airborne) p.active = true;
     } else if (grounded) {
-      neighbour_airborne_since_[j] = kNaN;
+      p.airborne_since = kNaN;
     }
   }
 }
@@ -701,7 +695,7 @@ bool VehicleController::EstimateUsable(double t) const {
   if (config_.leader) return own.position.allFinite();
   bool any = false;
   for (std::size_t j = 0; j < estimates_.neighbours.size(); ++j) {
-    if (neighbour_active_[j] && estimates_.neighbours[j].allFinite()) any = true;
+    if (presence_[j].active && estimates_.neighbours[j].allFinite()) any = true;
   }
   return any;
 }
@@ -745,10 +739,10 @@ void VehicleController::NearestObstacles(double t, Input* in) const {
     in->obstacle_normal[pos] = n.norm() > 1e-9 ? Vec3(n.normalized()) : Vec3(0.0, 0.0, 1.0);
   };
   for (std::size_t j = 0; j < estimates_.neighbours.size(); ++j) {
-    offer(estimates_.neighbours[j], neighbour_seen_[j]);
+    offer(estimates_.neighbours[j], presence_[j].seen);
   }
   for (std::size_t j = 0; j < estimates_.others.size(); ++j)
-    offer(estimates_.others[j], other_seen_[j]);
+    offer(estimates_.others[j], other_presence_[j].seen);
 }
 
 ControlOutput VehicleController::Control(double t) {
@@ -799,8 +793,7 @@ ControlOutput VehicleController::ControlWithEstimates(
         j < neighbours.size() ? neighbours[j] : estimation::NeighbourStateVec::Constant(kNaN);
     // Given estimates count as fresh measurements of the neighbours they describe.
     if (estimates_.neighbours[j].allFinite()) {
-      if (!std::isfinite(neighbour_seen_[j])) neighbour_seen_since_[j] = t;
-      neighbour_seen_[j] = t;
+      presence_[j].Accept(t, config_.safety.neighbour_reacquire_time);
     }
   }
   UpdateNeighbourPresence(t);
@@ -865,7 +858,7 @@ ControlOutput VehicleController::Step(double t) {
   if (!std::isfinite(yaw_ref_) && own.valid && std::isfinite(own.euler.z()))
     yaw_ref_ = own.euler.z();
   out.yaw = std::isfinite(yaw_ref_) ? yaw_ref_ : 0.0;
-  for (char a : neighbour_active_) out.active_neighbours += a != 0 ? 1 : 0;
+  for (const Presence& p : presence_) out.active_neighbours += p.active ? 1 : 0;
 
   double thrust = kNaN, roll = kNaN, pitch = kNaN;
   const double z = Height();
@@ -959,7 +952,7 @@ ControlOutput VehicleController::Step(double t) {
       in.height = z;
       for (std::size_t j = 0; j < estimates_.neighbours.size() && j < 2; ++j) {
         const auto& x = estimates_.neighbours[j];
-        in.active[j] = neighbour_active_[j] != 0 && x.allFinite();
+        in.active[j] = presence_[j].active && x.allFinite();
         in.neighbours[j] = {x.segment<3>(0), x.segment<3>(3), x[6], x[7]};
       }
       in.last_command = last_command_.allFinite() ? last_command_

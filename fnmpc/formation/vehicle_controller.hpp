@@ -160,7 +160,7 @@ class VehicleController {
   [[nodiscard]] bool failsafe() const { return ladder_.failsafe(); }
   [[nodiscard]] RecoveryReason failsafe_reason() const { return failsafe_reason_; }
   /// Follower: whether neighbour j (configuration order) is in the cost.
-  [[nodiscard]] bool neighbour_active(std::size_t j) const { return neighbour_active_.at(j); }
+  [[nodiscard]] bool neighbour_active(std::size_t j) const { return presence_.at(j).active; }
   /// Estimates used by the last Control() call.
   [[nodiscard]] const ControllerEstimates& estimates() const { return estimates_; }
   /// Start of the NMPC phase [s] (NaN before).
@@ -196,7 +196,18 @@ class VehicleController {
   // with the stamp of their last accepted measurement.
   std::vector<int> other_vehicles_;
   std::vector<estimation::NeighbourEkf> other_ekfs_;
-  std::vector<double> other_seen_;
+  /// Presence of a tracked vehicle, from the relative measurements its filter accepted.
+  struct Presence {
+    double seen = kNaN;            // stamp of the last accepted measurement [s]
+    double seen_since = kNaN;      // start of the current run of acceptances [s]
+    double grounded_since = kNaN;  // [s], NaN: airborne (formation neighbours only)
+    double airborne_since = kNaN;  // [s], NaN: not (yet) airborne again
+    bool active = true;            // formation neighbour in the cost
+    bool landed = false;           // lost because seen on the ground
+    /// Records an acceptance at `stamp`; a gap longer than `max_gap` starts a new run.
+    void Accept(double stamp, double max_gap);
+  };
+  std::vector<Presence> other_presence_;
   std::unique_ptr<NmpcCore> nmpc_;
   TakeoffPid pid_;
   FlightPhase phase_ = FlightPhase::kIdle;
@@ -206,7 +217,6 @@ class VehicleController {
   double at_height_since_ = kNaN;
   double z_ref_ = kNaN;
   double land_z0_ = kNaN;
-  double mocap_z_ = kNaN;  // follower: raw mocap height (take-off/landing only)
   double voltage_ = kNaN;  // filtered battery voltage
   double voltage_stamp_ = kNaN;
   double yaw_ref_ = kNaN;
@@ -226,12 +236,7 @@ class VehicleController {
   bool nmpc_started_ = false;
   bool reinit_pending_ = false;
   // Follower: neighbour presence (hysteresis on accepted relative measurements).
-  std::vector<double> neighbour_seen_;        // stamp of the last accepted measurement [s]
-  std::vector<double> neighbour_seen_since_;  // start of the current run of acceptances [s]
-  std::vector<char> neighbour_active_;
-  std::vector<char> neighbour_landed_;            // lost because seen on the ground
-  std::vector<double> neighbour_grounded_since_;  // [s], NaN: airborne
-  std::vector<double> neighbour_airborne_since_;  // [s], NaN: not (yet) airborne again
+  std::vector<Presence> presence_;  // formation neighbours, configuration order
 };
 
 }  // namespace fnmpc::formation
