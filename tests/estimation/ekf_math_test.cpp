@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "fnmpc/estimation/ekf_math.hpp"
+#include "tests/support/numeric_jacobian.hpp"
 
 #include <gtest/gtest.h>
 
@@ -142,17 +143,7 @@ TEST(ReplayBufferTest, CapacityEvictsOldestAndCounts) {
 // ---------------------------------------------------------------------------------------
 // Model Jacobians against central differences.
 
-template <int N, class F>
-Mat<N, N> NumericJacobian(const Vec<N>& x, F&& f) {
-  Mat<N, N> J;
-  for (int i = 0; i < N; ++i) {
-    Vec<N> xp = x, xm = x;
-    xp(i) += 1e-6;
-    xm(i) -= 1e-6;
-    J.col(i) = (f(xp) - f(xm)) / 2e-6;
-  }
-  return J;
-}
+using ::fnmpc::testing::NumericJacobian;
 
 VehicleStateVec SampleVehicleState() {
   VehicleStateVec x;

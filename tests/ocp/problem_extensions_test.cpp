@@ -8,6 +8,7 @@
 #include <random>
 
 #include "fnmpc/ocp/problems.hpp"
+#include "tests/support/numeric_jacobian.hpp"
 
 namespace fnmpc::ocp {
 namespace {
@@ -18,41 +19,32 @@ using Full = WithInputRate<Obst>;
 template <class P>
 void CheckJacobians(const P& prob, const Vec<P::kNx>& x, const Vec<P::kNu>& u,
                     const Vec<P::kNp>& p) {
+  using ::fnmpc::testing::NumericJacobian;
   Vec<P::kNy> y;
   Mat<P::kNy, P::kNx> yx = Mat<P::kNy, P::kNx>::Zero();
   Mat<P::kNy, P::kNu> yu = Mat<P::kNy, P::kNu>::Zero();
   prob.StageResidual(x, u, p, &y, &yx, &yu);
-  const double h = 1e-6;
-  for (int i = 0; i < P::kNx; ++i) {
-    Vec<P::kNx> xp = x, xm = x;
-    xp[i] += h;
-    xm[i] -= h;
-    Vec<P::kNy> yp, ym;
-    prob.StageResidual(xp, u, p, &yp, nullptr, nullptr);
-    prob.StageResidual(xm, u, p, &ym, nullptr, nullptr);
-    EXPECT_LT(((yp - ym) / (2 * h) - yx.col(i)).cwiseAbs().maxCoeff(), 1e-6) << "x col " << i;
-  }
-  for (int i = 0; i < P::kNu; ++i) {
-    Vec<P::kNu> up = u, um = u;
-    up[i] += h;
-    um[i] -= h;
-    Vec<P::kNy> yp, ym;
-    prob.StageResidual(x, up, p, &yp, nullptr, nullptr);
-    prob.StageResidual(x, um, p, &ym, nullptr, nullptr);
-    EXPECT_LT(((yp - ym) / (2 * h) - yu.col(i)).cwiseAbs().maxCoeff(), 1e-6) << "u col " << i;
-  }
+  const auto stage_x = [&](const Vec<P::kNx>& z) {
+    Vec<P::kNy> r;
+    prob.StageResidual(z, u, p, &r, nullptr, nullptr);
+    return r;
+  };
+  const auto stage_u = [&](const Vec<P::kNu>& v) {
+    Vec<P::kNy> r;
+    prob.StageResidual(x, v, p, &r, nullptr, nullptr);
+    return r;
+  };
+  EXPECT_LT((NumericJacobian<P::kNx>(x, stage_x) - yx).cwiseAbs().maxCoeff(), 1e-6);
+  EXPECT_LT((NumericJacobian<P::kNu>(u, stage_u) - yu).cwiseAbs().maxCoeff(), 1e-6);
   Vec<P::kNyN> yn;
   Mat<P::kNyN, P::kNx> ynx = Mat<P::kNyN, P::kNx>::Zero();
   prob.TerminalResidual(x, p, &yn, &ynx);
-  for (int i = 0; i < P::kNx; ++i) {
-    Vec<P::kNx> xp = x, xm = x;
-    xp[i] += h;
-    xm[i] -= h;
-    Vec<P::kNyN> yp, ym;
-    prob.TerminalResidual(xp, p, &yp, nullptr);
-    prob.TerminalResidual(xm, p, &ym, nullptr);
-    EXPECT_LT(((yp - ym) / (2 * h) - ynx.col(i)).cwiseAbs().maxCoeff(), 1e-6) << "xN col " << i;
-  }
+  const auto terminal = [&](const Vec<P::kNx>& z) {
+    Vec<P::kNyN> r;
+    prob.TerminalResidual(z, p, &r, nullptr);
+    return r;
+  };
+  EXPECT_LT((NumericJacobian<P::kNx>(x, terminal) - ynx).cwiseAbs().maxCoeff(), 1e-6);
 }
 
 TEST(ProblemExtensionsTest, JacobiansMatchFiniteDifferences) {
