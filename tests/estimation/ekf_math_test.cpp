@@ -1,6 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "fnmpc/estimation/ekf_math.hpp"
-#include "tests/support/numeric_jacobian.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,6 +9,7 @@
 #include "fnmpc/estimation/neighbour_ekf.hpp"
 #include "fnmpc/estimation/replay_buffer.hpp"
 #include "fnmpc/estimation/vehicle_ekf.hpp"
+#include "tests/support/numeric_jacobian.hpp"
 
 namespace fnmpc::estimation {
 namespace {
