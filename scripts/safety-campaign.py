@@ -79,7 +79,9 @@ def main():
                "-o", out_dir]
         print(f"safety-campaign: {name} ({runs} runs)", file=sys.stderr, flush=True)
         r = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-        if r.returncode != 0:
+        # 3: the runs finished but some vehicle failed (envelope, landing, failsafe;
+        # docs/failure.md): that is what this campaign measures, judged below.
+        if r.returncode not in (0, 3):
             raise SystemExit(f"safety-campaign: {' '.join(cmd)} failed:\n{r.stderr[-2000:]}")
         with open(os.path.join(out_dir, "summary.json")) as f:
             agg = json.load(f)

@@ -34,13 +34,51 @@ def num(x):
     return x if isinstance(x, float) and not math.isnan(x) else float("nan")
 
 
+class IncompleteRunFolder(Exception):
+    """The folder is not a whole run folder of `fnmpc run`; reported in one line."""
+
+
+def check_run_folder(run_dir):
+    """The summary and every vehicle's CSV with data rows, or IncompleteRunFolder."""
+    path = os.path.join(run_dir, "summary.json")
+    try:
+        with open(path) as f:
+            summary = json.load(f)
+    except (OSError, ValueError) as e:
+        raise IncompleteRunFolder(f"{path}: unreadable summary ({e})")
+    if not isinstance(summary, dict):
+        raise IncompleteRunFolder(f"{path}: not a summary (expected a JSON object)")
+    if summary.get("complete") is False:
+        why = summary.get("stopped") or summary.get("error") or "incomplete"
+        raise IncompleteRunFolder(f"{path}: the run did not complete ({why})")
+    runs = summary.get("run_summaries", [summary])
+    if not runs or not all(isinstance(r, dict) and isinstance(r.get("vehicles"), dict) and r["vehicles"]
+                           for r in runs):
+        raise IncompleteRunFolder(f"{path}: no vehicles listed")
+    for r in runs:
+        rdir = os.path.join(run_dir, str(r.get("dir", ".")))
+        for name in r["vehicles"]:
+            csv_path = os.path.join(rdir, name + ".csv")
+            try:
+                with open(csv_path, newline="") as f:
+                    rows = sum(1 for _ in f)
+            except OSError as e:
+                raise IncompleteRunFolder(f"{csv_path}: {e.strerror}")
+            if rows < 2:
+                raise IncompleteRunFolder(f"{csv_path}: no data rows")
+    return summary
+
+
 def main():
     if len(sys.argv) != 2:
         print(__doc__)
         return 2
     run_dir = sys.argv[1]
-    with open(os.path.join(run_dir, "summary.json")) as f:
-        summary = json.load(f)
+    try:
+        summary = check_run_folder(run_dir)
+    except IncompleteRunFolder as e:
+        print(f"report.py: {e}", file=sys.stderr)
+        return 1
     runs = summary.get("run_summaries", [summary])
     data = []  # per run: {vehicle: columns}
     for r in runs:

@@ -174,8 +174,10 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
   sub->add_option("flight", o->flight, "flight CSV (shared/data-formats.md)")->required();
   sub->add_option("-o,--output", o->output, "calibrated vehicle YAML to write")->required();
   sub->add_flag("!--no-plots", o->plots, "skip tools/sysid_report.py (CSV dumps only)");
-  sub->add_option("--window", o->settings.window, "prediction window [s]");
-  sub->add_option("--stride", o->settings.window_stride, "window start spacing [s]");
+  sub->add_option("--window", o->settings.window, "prediction window [s]")
+      ->check(FiniteIn(0.01, 60.0));
+  sub->add_option("--stride", o->settings.window_stride, "window start spacing [s]")
+      ->check(FiniteIn(0.01, 60.0));
   o->settings.bootstrap = 30;
   sub->add_option("--bootstrap", o->settings.bootstrap,
                   "refits on resampled windows for the standard errors (0: covariance only)");

@@ -2,10 +2,51 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <cmath>
+#include <cstdlib>
 #include <functional>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace fnmpc::app {
+
+/// Exit codes of the fnmpc commands (docs/failure.md). A signal that stops a command gives
+/// 128 + the signal number (130 for SIGINT, 143 for SIGTERM).
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitError = 1;            ///< bad input, unwritable output, failed tool
+inline constexpr int kExitUsage = 2;            ///< bad command line
+inline constexpr int kExitRunFailed = 3;        ///< the run finished but a vehicle failed
+inline constexpr int kExitSimulationError = 4;  ///< the simulator became unstable
+
+/// CLI11 check for a number option: finite (no nan / inf) and within [lo, hi].
+inline CLI::Validator FiniteIn(double lo, double hi) {
+  return CLI::Validator(
+      [lo, hi](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(text.c_str(), &end);
+        if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(v)) {
+          return "must be a finite number, got '" + text + "'";
+        }
+        if (v < lo || v > hi) {
+          return "must be in [" + CLI::detail::to_string(lo) + ", " + CLI::detail::to_string(hi) +
+                 "], got " + text;
+        }
+        return "";
+      },
+      "FINITE", "FiniteIn");
+}
+
+/// Thrown when a signal stopped the command (or a helper program it ran); main() exits with
+/// code().
+class Interrupted : public std::runtime_error {
+ public:
+  Interrupted(int code, const std::string& what) : std::runtime_error(what), code_(code) {}
+  [[nodiscard]] int code() const { return code_; }
+
+ private:
+  int code_;
+};
 
 /// A subcommand registers itself with a CLI11 sub-app and the function that runs it.
 struct Command {

@@ -3,20 +3,15 @@
 // tools/report.py (matplotlib, Agg backend).
 #include <fmt/core.h>
 
-#include <cstdlib>
+#include <csignal>
 #include <filesystem>
 #include <memory>
 
 #include "apps/fnmpc/commands.hpp"
+#include "apps/fnmpc/process.hpp"
 
 namespace fnmpc::app {
 namespace {
-
-std::string Quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
 
 void Register(CLI::App& app, std::vector<Command>& registry) {
   auto dir = std::make_shared<std::string>();
@@ -26,16 +21,19 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
       ->required()
       ->check(CLI::ExistingDirectory);
   sub->add_option("--script", *script, "report script")->check(CLI::ExistingFile);
-  registry.push_back({sub, [dir, script] {
-                        const std::string cmd =
-                            "MPLBACKEND=Agg /usr/bin/python3 " + Quote(*script) + " " + Quote(*dir);
-                        const int rc = std::system(cmd.c_str());
-                        if (rc != 0) {
-                          fmt::print(stderr, "fnmpc report: {} failed ({})\n", *script, rc);
-                          return 1;
-                        }
-                        return 0;
-                      }});
+  registry.push_back(
+      {sub, [dir, script] {
+         // No shell: the folder name reaches the script verbatim.
+         const int rc = RunProgram({"/usr/bin/python3", *script, *dir}, {"MPLBACKEND=Agg"});
+         if (rc == 128 + SIGINT || rc == 128 + SIGTERM) {
+           throw Interrupted(rc, *script + " interrupted");
+         }
+         if (rc != 0) {
+           fmt::print(stderr, "fnmpc report: {} failed (status {})\n", *script, rc);
+           return kExitError;
+         }
+         return kExitOk;
+       }});
 }
 const RegisterCommand kRegistered(&Register);
 

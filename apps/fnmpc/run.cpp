@@ -5,50 +5,93 @@
 #include <fmt/core.h>
 
 #include <chrono>
+#include <csignal>
 #include <ctime>
 #include <filesystem>
-#include <fstream>
 #include <memory>
+#include <stdexcept>
 
 #include "apps/fnmpc/commands.hpp"
+#include "apps/fnmpc/output_files.hpp"
 #include "apps/fnmpc/scenario_runner.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
 
 namespace fnmpc::app {
 namespace {
 
+/// The signal that asked the run to stop (SIGINT, SIGTERM), 0: none.
+volatile std::sig_atomic_t g_stop_signal = 0;
+extern "C" void OnStopSignal(int signo) { g_stop_signal = signo; }
+
 struct RunArgs {
   std::string scenario;
   std::string out;
   int runs = 1;
-  int seed = -1;
+  long long seed = -1;
   double duration = -1.0;
+  CLI::Option* duration_option = nullptr;
   bool quiet = false;
+  bool overwrite = false;
   std::string downwash;  // "", "on", "off"
 };
 
+/// Creates `dir` or checks that it is empty; with `overwrite` its contents are removed
+/// first (never the folder itself, so a symlink to it stays).
+void PrepareRunFolder(const std::string& dir, bool overwrite) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
+    throw std::runtime_error(dir + ": exists and is not a folder");
+  }
+  if (fs::is_directory(dir, ec) && !fs::is_empty(dir, ec)) {
+    if (!overwrite) {
+      throw std::runtime_error(dir +
+                               ": run folder is not empty (an earlier run?); use "
+                               "--overwrite to empty it first or choose another -o");
+    }
+    for (const auto& entry : fs::directory_iterator(dir)) fs::remove_all(entry.path());
+  }
+  fs::create_directories(dir);
+}
+
 int Run(const RunArgs& a) {
   config::ScenarioConfig sc = config::LoadScenarioFile(a.scenario);
-  if (a.duration > 0.0) sc = Shortened(sc, a.duration);
+  if (a.duration_option != nullptr && a.duration_option->count() > 0) {
+    config::CheckDurationFlag(sc, a.duration);
+    sc = Shortened(sc, a.duration);
+  }
   if (!a.downwash.empty()) sc.downwash = a.downwash == "on";
+  for (const std::string& w : sc.warnings) fmt::print(stderr, "fnmpc run: warning: {}\n", w);
   std::string dir = a.out;
   if (dir.empty()) {
     const std::time_t now = std::time(nullptr);
     dir = fmt::format("runs/{}-{:%Y%m%d-%H%M%S}", sc.name, fmt::localtime(now));
   }
-  std::filesystem::create_directories(dir);
-  std::filesystem::copy_file(a.scenario, dir + "/scenario.yaml",
+  PrepareRunFolder(dir, a.overwrite);
+  std::filesystem::copy_file(a.scenario, PathInside(dir, "scenario.yaml"),
                              std::filesystem::copy_options::overwrite_existing);
   const std::uint64_t seed0 = a.seed >= 0 ? static_cast<std::uint64_t>(a.seed) : sc.seed;
+  // Ctrl-C / SIGTERM: the current run finishes its physics step, writes what it has and the
+  // folder is marked incomplete.
+  g_stop_signal = 0;
+  std::signal(SIGINT, OnStopSignal);
+  std::signal(SIGTERM, OnStopSignal);
   std::vector<nlohmann::json> runs;
-  for (int r = 0; r < a.runs; ++r) {
+  bool sim_failed = false;
+  for (int r = 0; r < a.runs && g_stop_signal == 0; ++r) {
     RunOptions o;
     o.seed = seed0 + static_cast<std::uint64_t>(r);
     o.progress = !a.quiet;
     o.label = fmt::format("[{} run {}/{} seed {}]", sc.name, r + 1, a.runs, o.seed);
+    o.stop = &g_stop_signal;
     const std::string rdir = fmt::format("{}/run-{:02d}", dir, r + 1);
     nlohmann::json s = RunScenario(sc, o, rdir);
     s["dir"] = fmt::format("run-{:02d}", r + 1);
+    if (s.contains("error")) {
+      sim_failed = true;
+      fmt::print(stderr, "fnmpc run: {}: simulation stopped: {}\n", s["dir"].get<std::string>(),
+                 s["error"].get<std::string>());
+    }
     runs.push_back(s);
     if (!a.quiet) {
       fmt::print(
@@ -62,12 +105,35 @@ int Run(const RunArgs& a) {
           s["solver_time_max_s"].is_number() ? 1e3 * s["solver_time_max_s"].get<double>() : -1.0,
           s["fallbacks"].get<long>(), s["landed_safely"].get<bool>());
     }
+    if (sim_failed) break;
   }
-  nlohmann::json summary = AggregateRuns(runs);
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+  nlohmann::json summary = runs.empty() ? nlohmann::json::object() : AggregateRuns(runs);
   summary["scenario_file"] = a.scenario;
-  std::ofstream(dir + "/summary.json") << summary.dump(2) << "\n";
+  summary["runs_requested"] = a.runs;
+  const bool complete = g_stop_signal == 0 && !sim_failed &&
+                        static_cast<int>(runs.size()) == a.runs && summary.value("complete", false);
+  summary["complete"] = complete;
+  if (g_stop_signal != 0) summary["stopped"] = "interrupted";
+  WriteFileAtomically(PathInside(dir, "summary.json"),
+                      summary.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
   fmt::print("{}\n", dir);
-  return 0;
+  if (g_stop_signal != 0) {
+    fmt::print(stderr,
+               "fnmpc run: interrupted (signal {}); {} of {} runs complete, {} marked "
+               "\"complete\": false\n",
+               static_cast<int>(g_stop_signal), runs.empty() ? 0 : runs.size() - 1, a.runs,
+               PathInside(dir, "summary.json"));
+    return 128 + static_cast<int>(g_stop_signal);
+  }
+  if (sim_failed) return kExitSimulationError;
+  const auto& failures = summary["failures"];
+  for (const auto& f : failures) {
+    fmt::print(stderr, "fnmpc run: FAILED {}: vehicle {}: {}\n", f.value("run", std::string()),
+               f.value("vehicle", std::string()), f.value("reason", std::string()));
+  }
+  return failures.empty() ? 0 : kExitRunFailed;
 }
 
 void Register(CLI::App& app, std::vector<Command>& registry) {
@@ -77,12 +143,19 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
                   "scenario YAML (config/scenarios/*.yaml, docs/scenarios.md)")
       ->required()
       ->check(CLI::ExistingFile);
-  sub->add_option("-o,--out", a->out, "run folder (default runs/<scenario>-<timestamp>)");
+  sub->add_option("-o,--out", a->out, "run folder (default runs/<scenario>-<timestamp>)")
+      ->check(CLI::Validator(
+          [](std::string& s) { return s.empty() ? std::string("must not be empty") : ""; }, "DIR",
+          "NonEmpty"));
+  sub->add_flag("--overwrite", a->overwrite, "empty a non-empty run folder first");
   sub->add_option("--runs", a->runs, "number of runs with seeds seed, seed+1, ...")
-      ->check(CLI::PositiveNumber);
-  sub->add_option("--seed", a->seed, "first noise seed (default: the scenario's)");
-  sub->add_option("--duration", a->duration,
-                  "shorten the scenario to this simulated time [s] (fewer legs, earlier landing)");
+      ->check(CLI::Range(1, 10000));
+  sub->add_option("--seed", a->seed, "first noise seed (default: the scenario's)")
+      ->check(CLI::Range(0LL, 1LL << 53));
+  a->duration_option = sub->add_option(
+      "--duration", a->duration,
+      "shorten the scenario to this simulated time [s] (fewer legs, earlier landing; at most "
+      "the scenario's duration)");
   sub->add_option("--downwash", a->downwash, "override the scenario's downwash switch")
       ->check(CLI::IsMember({"on", "off"}));
   sub->add_flag("-q,--quiet", a->quiet, "no progress output");

@@ -8,11 +8,11 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <random>
 #include <stdexcept>
 
+#include "apps/fnmpc/output_files.hpp"
 #include "fnmpc/core/rotation.hpp"
 #include "fnmpc/formation/trajectory.hpp"
 #include "fnmpc/formation/vehicle_controller.hpp"
@@ -43,8 +43,12 @@ double Mean(const std::vector<double>& v) {
 json Num(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
 
 struct VehicleLog {
-  std::unique_ptr<std::ofstream> csv;
-  std::vector<double> errors;  // follower: mean over neighbours of |dx_j - d_j|
+  std::unique_ptr<CheckedFile> csv;
+  std::vector<double> errors;         // follower: mean over neighbours of |dx_j - d_j|, own window
+  std::vector<double> flight_errors;  // follower: the same from take-off to touchdown
+  double max_altitude = -kInf;        // highest CoM height above the resting height [m]
+  double envelope_time = kNaN;        // first time outside the flight envelope [s]
+  std::string envelope_reason;
   std::vector<double> steady_errors;
   std::vector<std::vector<double>> nb_errors;  // per neighbour
   std::vector<std::vector<double>> nb_steady;
@@ -315,23 +319,33 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
   for (int i = 0; i < nv; ++i) {
     const auto& v = sc.vehicles[i];
     VehicleLog& L = logs[i];
-    L.csv = std::make_unique<std::ofstream>(dir + "/" + v.name + ".csv");
-    if (!*L.csv) throw std::runtime_error("cannot write " + dir + "/" + v.name + ".csv");
+    L.csv = std::make_unique<CheckedFile>(PathInside(dir, v.name + ".csv"));
     L.nb_errors.resize(v.neighbours.size());
     L.nb_steady.resize(v.neighbours.size());
-    *L.csv << kVehicleLogCsvHeader;
+    L.csv->Write(kVehicleLogCsvHeader);
   }
+  fmt::memory_buffer row;  // one CSV row, reused
+  std::string stopped;     // why the loop ended early ("interrupted"), empty: it did not
+  std::string sim_error;   // the simulator's instability report
 
   const double dt = world.physics_dt();
+  if (!(std::isfinite(duration) && duration > 0.0 && duration <= config::kMaxScenarioDuration)) {
+    throw std::invalid_argument("[RunScenario] duration must be in (0, " +
+                                std::to_string(config::kMaxScenarioDuration) + "] s, got " +
+                                std::to_string(duration));
+  }
   const int steps = static_cast<int>(std::lround(duration / dt));
   const int every = std::max(1, static_cast<int>(std::lround(sc.sample_time / dt)));
   double min_separation = kInf;
-  const double window_end = config::FormationWindowEnd(sc);
   std::vector<formation::ControlOutput> prev(nv);
   Measurement m;
   int next_progress = 0;
 
   for (int step = 0; step <= steps; ++step) {
+    if (options.stop != nullptr && *options.stop != 0) {
+      stopped = "interrupted";
+      break;
+    }
     const double t = world.time();
     if (manual) {
       Vec3 p, v;
@@ -388,9 +402,8 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
       // Leader reference and steady-state flag (formation window: trajectory start to landing).
       Vec3 ref_off, ref_v;
       trajectory.Sample(t - sc.trajectory_start, &ref_off, &ref_v);
-      const bool window = t >= sc.trajectory_start && t < window_end;
-      const bool steady =
-          window && trajectory.TimeSinceStop(t - sc.trajectory_start) >= sc.settle_time;
+      // Each vehicle's own window ends at its own landing (never at another one's).
+      const bool settled = trajectory.TimeSinceStop(t - sc.trajectory_start) >= sc.settle_time;
       Vec3 leader_ref = Vec3::Constant(kNaN);
       if (manual) {
         leader_ref = sc.manual_start + ref_off;
@@ -400,6 +413,8 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
       for (int i = 0; i < nv; ++i) {
         const auto& v = sc.vehicles[i];
         VehicleLog& L = logs[i];
+        const bool window = t >= sc.trajectory_start && t < config::LandingTime(sc, i);
+        const bool steady = window && settled;
         formation::ControlOutput out;
         if (faults.kill_controller.index == i && !killed[i] &&
             t >= faults.kill_controller.time - 1e-9) {
@@ -474,6 +489,24 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
           out.time = t;
         }
         const sim::TrueState& x = truth[i];
+        // Flight envelope (from the truth): altitude above the ground and horizontal distance
+        // from the start; the first excursion is kept.
+        {
+          const double altitude = x.position.z() - sim::World::kRestHeight;
+          const Vec3 start = world_config.vehicles[static_cast<std::size_t>(i)].position;
+          const double distance = (x.position - start).head<2>().norm();
+          L.max_altitude = std::max(L.max_altitude, altitude);
+          if (std::isnan(L.envelope_time) && (!(altitude <= sc.envelope.max_altitude) ||
+                                              !(distance <= sc.envelope.max_distance))) {
+            L.envelope_time = t;
+            L.envelope_reason = fmt::format(
+                "left the flight envelope at t = {:.2f} s: altitude {:.2f} m (max_altitude "
+                "{:.2f}), "
+                "{:.2f} m from its start (max_distance {:.2f}), at ({:.2f}, {:.2f}, {:.2f}) m",
+                t, altitude, sc.envelope.max_altitude, distance, sc.envelope.max_distance,
+                x.position.x(), x.position.y(), x.position.z());
+          }
+        }
         // Formation errors from the truth: (p_j - p_i) in the target frame minus d_j.
         std::array<Vec3, 2> rel{Vec3::Constant(kNaN), Vec3::Constant(kNaN)};
         std::array<Vec3, 2> est_rel{Vec3::Constant(kNaN), Vec3::Constant(kNaN)};
@@ -489,6 +522,7 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
             if (steady) L.nb_steady[j].push_back(err[j]);
           }
           if (window) L.errors.push_back(ferr);
+          if (t >= sc.takeoff_time && std::isnan(L.touchdown_time)) L.flight_errors.push_back(ferr);
           if (steady) L.steady_errors.push_back(ferr);
           if (window) L.samples.push_back({t, steady, err, out.active_neighbours});
         }
@@ -499,8 +533,9 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
         }
         const auto& e = ctrl[i] ? ctrl[i]->estimates().own : estimation::VehicleEstimate{};
         const std::int64_t rej = ctrl[i] ? ctrl[i]->estimator_rejections() : 0;
-        fmt::print(
-            *L.csv,
+        row.clear();
+        fmt::format_to(
+            std::back_inserter(row),
             "{:.3f},{},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
             "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
             "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
@@ -520,6 +555,7 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
             out.sqp_iterations, out.qp_iterations, out.fallback ? 1 : 0, rti::ToString(out.status),
             out.guarded ? 1 : 0, rej, x.voltage, out.voltage, formation::ToString(out.recovery),
             formation::ToString(out.recovery_reason), out.active_neighbours);
+        L.csv->Write(std::string_view(row.data(), row.size()));
       }
       if (options.progress && t >= next_progress) {
         std::fprintf(stderr, "\r%s t = %5.1f / %.1f s", options.label.c_str(), t, duration);
@@ -527,7 +563,14 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
         next_progress += 5;
       }
     }
-    if (step < steps) world.StepOnce();
+    if (step < steps) {
+      try {
+        world.StepOnce();
+      } catch (const sim::SimulationError& e) {
+        sim_error = e.what();
+        break;
+      }
+    }
   }
   if (options.progress)
     std::fprintf(stderr, "\r%s t = %5.1f / %.1f s\n", options.label.c_str(), duration, duration);
@@ -535,6 +578,7 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
   // ---- Metrics.
   json vehicles = json::object();
   double steady_worst = kNaN, mean_worst = kNaN, max_worst = kNaN;
+  double flight_mean_worst = kNaN, flight_max_worst = kNaN;
   std::vector<double> all_times;
   double time_max = 0.0, time_max_first = 0.0;
   long fallbacks = 0, failures = 0, over_budget = 0, nmpc_steps = 0, guarded = 0;
@@ -546,13 +590,16 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
   for (int i = 0; i < nv; ++i) {
     const auto& v = sc.vehicles[i];
     VehicleLog& L = logs[i];
-    L.csv->close();
+    L.csv->Finish();
     json j;
     j["role"] = v.leader ? "leader" : "follower";
     if (!v.leader) {
       j["formation_error_mean_m"] = Num(Mean(L.errors));
       j["formation_error_steady_state_mean_m"] = Num(Mean(L.steady_errors));
       j["formation_error_max_m"] = Num(Max(L.errors));
+      j["formation_window_s"] = {sc.trajectory_start, config::LandingTime(sc, i)};
+      j["formation_error_flight_mean_m"] = Num(Mean(L.flight_errors));
+      j["formation_error_flight_max_m"] = Num(Max(L.flight_errors));
       j["steady_state_samples"] = L.steady_errors.size();
       json nbs = json::object();
       for (std::size_t n = 0; n < v.neighbours.size(); ++n) {
@@ -567,6 +614,8 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
       steady_worst = worse(steady_worst, Mean(L.steady_errors));
       mean_worst = worse(mean_worst, Mean(L.errors));
       max_worst = worse(max_worst, Max(L.errors));
+      flight_mean_worst = worse(flight_mean_worst, Mean(L.flight_errors));
+      flight_max_worst = worse(flight_max_worst, Max(L.flight_errors));
     } else if (!manual) {
       j["tracking_error_mean_m"] = Num(Mean(L.tracking));
       j["tracking_error_max_m"] = Num(Max(L.tracking));
@@ -623,6 +672,8 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
     } else {
       j["moved_by_hand"] = true;
     }
+    j["max_altitude_m"] = Num(L.max_altitude);
+    j["left_envelope_time_s"] = Num(L.envelope_time);
     vehicles[v.name] = j;
   }
   // ---- Faults: what happened, per fault.
@@ -771,15 +822,59 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
     }
   }
 
+  // ---- Failures: why this run must not count as a success, per vehicle.
+  const bool complete = stopped.empty() && sim_error.empty();
+  json run_failures = json::array();
+  for (int i = 0; i < nv; ++i) {
+    const auto& v = sc.vehicles[i];
+    const VehicleLog& L = logs[i];
+    auto fail = [&](const std::string& reason) {
+      run_failures.push_back({{"vehicle", v.name}, {"reason", reason}});
+    };
+    if (std::isfinite(L.envelope_time)) fail(L.envelope_reason);
+    const bool downed_by_fault =
+        std::find(downed_by.begin(), downed_by.end(), i) != downed_by.end();
+    if (!ctrl[i] || downed_by_fault) continue;  // moved by hand, or downed on purpose
+    const double takeoff_height =
+        std::isfinite(v.takeoff_height) ? v.takeoff_height : sc.takeoff_height;
+    if (complete && !(L.max_altitude >= 0.5 * takeoff_height)) {
+      fail(fmt::format("never took off: highest altitude {:.3f} m, take-off height {:.2f} m",
+                       L.max_altitude, takeoff_height));
+    }
+    if (std::isfinite(L.failsafe_time)) {
+      fail(fmt::format("failsafe at t = {:.2f} s ({})", L.failsafe_time, L.failsafe_reason));
+    }
+    const json& vj = vehicles[v.name];
+    if (complete && !vj.value("landed_safely", false)) {
+      fail(fmt::format(
+          "not landed safely at the end: touchdown vertical speed {} m/s (max {}), motors off "
+          "{}, final tilt {:.3f} rad (max {})",
+          vj["touchdown_vertical_speed_mps"].is_number()
+              ? fmt::format("{:.3f}", vj["touchdown_vertical_speed_mps"].get<double>())
+              : std::string("none (no touchdown)"),
+          sc.touchdown_speed_max, vj.value("motors_off_at_end", false),
+          vj.value("final_tilt_rad", kNaN), sc.max_tilt_landed));
+    }
+  }
+
   json s;
   s["scenario"] = sc.name;
+  s["complete"] = complete;
+  if (!stopped.empty()) s["stopped"] = stopped;
+  if (!sim_error.empty()) s["error"] = sim_error;
+  s["failures"] = run_failures;
+  s["warnings"] = sc.warnings;
   s["seed"] = options.seed;
   s["duration_s"] = duration;
   s["downwash"] = sc.downwash;
-  s["formation_window_s"] = {sc.trajectory_start, window_end};
+  // The scenario's default window; a follower with its own landing_time uses its own
+  // (vehicles.<name>.formation_window_s).
+  s["formation_window_s"] = {sc.trajectory_start, sc.landing_time};
   s["steady_state_formation_error_m"] = Num(steady_worst);
   s["mean_formation_error_m"] = Num(mean_worst);
   s["max_formation_error_m"] = Num(max_worst);
+  s["mean_formation_error_flight_m"] = Num(flight_mean_worst);
+  s["max_formation_error_flight_m"] = Num(flight_max_worst);
   s["solver_time_max_s"] = Num(time_max);
   s["solver_time_max_after_first_step_s"] = Num(time_max_first);
   s["solver_time_median_s"] = Num(Median(all_times));
@@ -797,7 +892,8 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
   s["landed_safely"] = landed_safely;
   s["vehicles"] = vehicles;
   if (faults.any()) s["faults"] = fj;
-  std::ofstream(dir + "/summary.json") << s.dump(2) << "\n";
+  WriteFileAtomically(PathInside(dir, "summary.json"),
+                      s.dump(2, ' ', false, json::error_handler_t::replace) + "\n");
   return s;
 }
 
@@ -818,8 +914,9 @@ json AggregateRuns(const std::vector<json>& runs) {
     a[k] = Num(Mean(values(k)));
   }
   for (const char* k :
-       {"max_formation_error_m", "solver_time_max_s", "solver_time_max_after_first_step_s",
-        "fallbacks", "recoveries", "failsafes", "solver_failures", "guarded_commands"}) {
+       {"max_formation_error_m", "max_formation_error_flight_m", "mean_formation_error_flight_m",
+        "solver_time_max_s", "solver_time_max_after_first_step_s", "fallbacks", "recoveries",
+        "failsafes", "solver_failures", "guarded_commands"}) {
     a[k] = Num(Max(values(k)));
   }
   {
@@ -834,6 +931,19 @@ json AggregateRuns(const std::vector<json>& runs) {
     converged = converged && r.value("solver_converged_every_step", false);
   }
   a["landed_safely"] = landed;
+  bool complete = true;
+  json failures = json::array();
+  for (std::size_t r = 0; r < runs.size(); ++r) {
+    complete = complete && runs[r].value("complete", false);
+    if (!runs[r].contains("failures")) continue;
+    for (json f : runs[r]["failures"]) {
+      f["run"] = runs[r].value("dir", std::to_string(r + 1));
+      failures.push_back(f);
+    }
+  }
+  a["complete"] = complete;
+  a["failures"] = failures;
+  a["warnings"] = runs.front().value("warnings", json::array());
   a["solver_converged_every_step"] = converged;
   a["sample_time_s"] = runs.front()["sample_time_s"];
   a["formation_window_s"] = runs.front()["formation_window_s"];

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <array>
+#include <csignal>
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -56,11 +57,19 @@ struct RunOptions {
   double duration = -1.0;  ///< simulated time [s]; < 0: the scenario's
   bool progress = false;   ///< print progress to stderr
   std::string label;       ///< progress prefix
+  /// When given and set (a signal handler), the run stops after the current physics step,
+  /// writes what is complete and returns a summary with "complete": false.
+  const volatile std::sig_atomic_t* stop = nullptr;
 };
 
 /// Runs one closed-loop simulation of `scenario`, writes one CSV log per vehicle
 /// (<dir>/<vehicle>.csv) and returns the run's metrics (also written to
-/// <dir>/summary.json). Throws std::runtime_error when the output cannot be written.
+/// <dir>/summary.json, atomically). The summary's "complete" is false when the run was
+/// stopped (options.stop: "stopped": "interrupted") or the simulator became unstable
+/// ("error": the SimulationError with the state at that moment); the CSVs then hold every
+/// step simulated. "failures" lists, per vehicle, why the run failed (left the envelope,
+/// never took off, not landed safely, failsafe); "warnings" the scenario's warnings.
+/// Throws std::runtime_error naming the file and the errno text when output cannot be written.
 nlohmann::json RunScenario(const config::ScenarioConfig& scenario, const RunOptions& options,
                            const std::string& dir);
 

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "apps/fnmpc/commands.hpp"
+#include "apps/fnmpc/output_files.hpp"
 #include "apps/fnmpc/sysid_report.hpp"
 #include "fnmpc/config/campaign_yaml.hpp"
 #include "fnmpc/config/csv_reader.hpp"
@@ -61,6 +62,7 @@ struct SysidOptions {
   std::string tau_convention = "auto";
   std::string synth_dir;
   unsigned seed = 7;
+  bool overwrite = false;  // synth: replace an existing campaign
   SynthVariation variation;
 };
 
@@ -516,6 +518,11 @@ struct DcMotorMap {
 
 int RunSynth(const SysidOptions& o) {
   const fs::path dir(o.synth_dir);
+  if (o.synth_dir.empty()) throw std::invalid_argument("sysid synth: empty output directory");
+  if (fs::exists(dir / "campaign.yaml") && !o.overwrite) {
+    throw std::runtime_error((dir / "campaign.yaml").string() +
+                             ": a campaign exists already; use --overwrite to replace it");
+  }
   fs::create_directories(dir);
   const SynthVariation& var = o.variation;
   if (!(var.log_rate_hz > 0.0) || !(var.noise_scale >= 0.0) || !(var.data_fraction > 0.0) ||
@@ -698,7 +705,7 @@ int RunSynth(const SysidOptions& o) {
                            cols);
   }
   {
-    std::ofstream out(dir / "campaign.yaml");
+    std::ostringstream out;
     out << "# Synthetic campaign written by `fnmpc sysid synth` (truth: truth.yaml)\n"
         << "name: synthetic-storm-drone\n"
         << fmt::format("mass: {}\n", v.mass) << fmt::format("arm_length: {}\n", v.arm_length)
@@ -708,6 +715,7 @@ int RunSynth(const SysidOptions& o) {
         << "  runs: {x: pendulum_x.csv, y: pendulum_y.csv, z: pendulum_z.csv}\n"
         << "attitude_steps: attitude_steps.csv\n"
         << "flight: flight.csv\n";
+    WriteFileAtomically((dir / "campaign.yaml").string(), out.str());
   }
   config::SaveVehicleFile(v, (dir / "truth.yaml").string());
   fmt::print("{}: synthetic campaign (campaign.yaml, truth.yaml)\n", dir.string());
@@ -723,9 +731,12 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
   sub->add_option("-o,--output", o->output, "vehicle YAML to write");
   sub->add_flag("!--no-plots", o->plots, "skip tools/sysid_report.py (CSV dumps only)");
   sub->add_option("--motor-time-constant", o->motor_time_constant,
-                  "simulator motor lag for the PD fit [s]");
-  sub->add_option("--autopilot-rate", o->autopilot_rate_hz, "simulator autopilot rate [Hz]");
-  sub->add_option("--physics-dt", o->physics_dt, "simulator physics step [s]");
+                  "simulator motor lag for the PD fit [s]")
+      ->check(FiniteIn(1e-4, 1.0));
+  sub->add_option("--autopilot-rate", o->autopilot_rate_hz, "simulator autopilot rate [Hz]")
+      ->check(FiniteIn(1.0, 10000.0));
+  sub->add_option("--physics-dt", o->physics_dt, "simulator physics step [s]")
+      ->check(FiniteIn(1e-5, 0.01));
   sub->add_option("--tau", o->tau_convention,
                   "attitude time constant: auto (the delay is a transport delay when first "
                   "order + dead time fits better than the PD loop, docs/sysid.md), lag (tau "
@@ -738,11 +749,18 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
       sub->add_subcommand("synth", "Write a synthetic campaign made with the simulator");
   synth->add_option("outdir", o->synth_dir, "output directory")->required();
   synth->add_option("--seed", o->seed, "noise seed");
-  synth->add_option("--delay", o->variation.delay, "transport delay of the commands [s]");
-  synth->add_option("--log-rate", o->variation.log_rate_hz, "attitude step logging rate [Hz]");
-  synth->add_option("--noise-scale", o->variation.noise_scale, "factor on every sensor noise");
-  synth->add_option("--data-fraction", o->variation.data_fraction,
-                    "share of the data to record (0.5: half)");
+  synth->add_flag("--overwrite", o->overwrite, "replace an existing campaign in outdir");
+  synth->add_option("--delay", o->variation.delay, "transport delay of the commands [s]")
+      ->check(FiniteIn(0.0, 1.0));
+  synth->add_option("--log-rate", o->variation.log_rate_hz, "attitude step logging rate [Hz]")
+      ->check(FiniteIn(1.0, 10000.0));
+  synth->add_option("--noise-scale", o->variation.noise_scale, "factor on every sensor noise")
+      ->check(FiniteIn(0.0, 100.0));
+  synth
+      ->add_option("--data-fraction", o->variation.data_fraction,
+                   "share of the data to record (0.5: half)")
+      ->check(FiniteIn(1e-3, 1.0))
+      ->check(FiniteIn(1e-3, 1.0));
   synth->add_option("--motor-map", o->variation.motor_map,
                     "bench map: polynomial (the vehicle's) or dc (DC motor with winding "
                     "resistance; truth in truth_motor.yaml)");

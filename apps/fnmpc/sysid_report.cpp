@@ -1,7 +1,11 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "apps/fnmpc/sysid_report.hpp"
 
+#include "apps/fnmpc/commands.hpp"
+
 #include <fmt/core.h>
+
+#include <csignal>
 
 #include <cmath>
 #include <fstream>
@@ -77,6 +81,12 @@ void Finalize(const fs::path& tmp, const fs::path& final_dir, bool plots) {
     const std::string script = std::string(FNMPC_SOURCE_DIR) + "/tools/sysid_report.py";
     // No shell: the paths go to the script verbatim, whatever characters they hold.
     const int rc = RunProgram({"/usr/bin/python3", script, tmp.string()}, {"MPLBACKEND=Agg"});
+    if (rc == 128 + SIGINT || rc == 128 + SIGTERM) {
+      // Ctrl-C reaches the plotter too: stop here rather than report success.
+      std::error_code ec;
+      fs::remove_all(tmp, ec);
+      throw Interrupted(rc, script + " interrupted (signal " + std::to_string(rc - 128) + ")");
+    }
     if (rc != 0) {
       fmt::print(stderr, "fnmpc: warning: {} failed (status {}); CSVs are in {}\n", script, rc,
                  final_dir.string());

@@ -15,9 +15,15 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
   CLI::App* sub = app.add_subcommand("check-vehicle", "Validate a vehicle YAML file and print it");
   sub->add_option("file", *path, "vehicle YAML (shared/data-formats.md)")->required();
   registry.push_back({sub, [path] {
+                        // LoadVehicleFile checks plausibility (config::CheckVehiclePlausible).
                         const auto p = config::LoadVehicleFile(*path);
-                        fmt::print("{}: ok (mass {} kg, hover throttle at 16.0 V: {:.3f})\n", *path,
-                                   p.mass, p.throttle.Throttle(p.mass * 9.81 / 4.0, 16.0));
+                        const auto [v_lo, v_hi] = config::kPlausibleVoltageRange;
+                        const double hover = p.mass * config::kPlausibleGravity / 4.0;
+                        fmt::print(
+                            "{}: ok (mass {} kg, hover throttle {:.3f} at {:.1f} V, {:.3f} at "
+                            "{:.1f} V)\n",
+                            *path, p.mass, p.throttle.Throttle(hover, v_lo), v_lo,
+                            p.throttle.Throttle(hover, v_hi), v_hi);
                         return 0;
                       }});
 }

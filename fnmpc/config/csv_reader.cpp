@@ -1,11 +1,12 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "fnmpc/config/csv_reader.hpp"
 
+#include "fnmpc/config/text_file.hpp"
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
-#include <fstream>
 #include <sstream>
 #include <stdexcept>
 
@@ -127,11 +128,7 @@ CsvTable ParseCsv(const std::string& text, const std::string& name,
 
 CsvTable ReadCsv(const std::string& path, const std::vector<std::string>& required,
                  const std::string& time_column) {
-  std::ifstream in(path);
-  if (!in) throw ConfigError(path + ": cannot open file");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ParseCsv(ss.str(), path, required, time_column);
+  return ParseCsv(ReadTextFile(path), path, required, time_column);
 }
 
 }  // namespace fnmpc::config

@@ -7,6 +7,7 @@
 #include <map>
 
 #include "fnmpc/config/sensors_yaml.hpp"
+#include "fnmpc/config/text_file.hpp"
 #include "fnmpc/config/vehicle_yaml.hpp"
 
 namespace fnmpc::config {
@@ -45,6 +46,37 @@ std::pair<double, double> Range(YamlMap& m, const std::string& key, double lo, d
   if (!(v[0] >= 0.0 && v[1] >= v[0]))
     throw m.ErrorAt(key, "must be [min, max] with 0 <= min <= max");
   return {v[0], v[1]};
+}
+
+/// Loads a file the scenario refers to by `key`; its errors (which carry the referenced file's
+/// own place) are prefixed with the place of the reference.
+template <typename Load>
+auto Referenced(YamlMap& m, const std::string& key, const Load& load) {
+  try {
+    return load();
+  } catch (const ConfigError& e) {
+    throw m.ErrorAt(key, e.what());
+  }
+}
+
+/// A name that becomes part of a file or folder name: an identifier (IsIdentifier).
+std::string Identifier(YamlMap& m, const std::string& key) {
+  const std::string name = m.String(key);
+  if (!IsIdentifier(name)) {
+    throw m.ErrorAt(
+        key, "must be 1 to 64 letters, digits, '-' or '_' (it names files), got '" + name + "'");
+  }
+  return name;
+}
+
+/// An integer in [lo, hi].
+int IntIn(YamlMap& m, const std::string& key, int fallback, int lo, int hi) {
+  const int v = m.Int(key, fallback);
+  if (v < lo || v > hi) {
+    throw m.ErrorAt(key, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) +
+                             "], got " + std::to_string(v));
+  }
+  return v;
 }
 
 ScenarioWeights ParseWeights(YamlMap m) {
@@ -154,10 +186,13 @@ ScenarioFaults ParseFaults(YamlMap fm, const ScenarioConfig& s) {
 ScenarioConfig ParseScenario(YamlMap map) {
   ScenarioConfig s;
   s.file = map.file();
-  s.name = map.String("name");
-  if (s.name.empty()) throw map.ErrorAt("name", "must not be empty");
+  s.name = Identifier(map, "name");
   s.description = map.String("description", "");
   s.duration = Positive(map, "duration", s.duration);
+  if (s.duration > kMaxScenarioDuration) {
+    throw map.ErrorAt("duration", "must be <= " + std::to_string(kMaxScenarioDuration) +
+                                      " s, got " + std::to_string(s.duration));
+  }
   {
     const int seed = map.Int("seed", 1);
     if (seed < 0) throw map.ErrorAt("seed", "must be >= 0");
@@ -167,22 +202,27 @@ ScenarioConfig ParseScenario(YamlMap map) {
   s.battery_sag = map.Bool("battery_sag", s.battery_sag);
   const std::string vehicle_file = Resolve(map, map.String("vehicle_file"));
   const std::string sensors_file = Resolve(map, map.String("sensors_file", ""));
-  const model::VehicleParams default_params = LoadVehicleFile(vehicle_file);
+  const model::VehicleParams default_params =
+      Referenced(map, "vehicle_file", [&] { return LoadVehicleFile(vehicle_file); });
   const SensorsConfig default_sensors =
-      sensors_file.empty() ? SensorsConfig{} : LoadSensorsFile(sensors_file);
+      sensors_file.empty()
+          ? SensorsConfig{}
+          : Referenced(map, "sensors_file", [&] { return LoadSensorsFile(sensors_file); });
 
   // ---- Vehicles.
   std::vector<YamlMap> vmaps = map.MapList("vehicles");
   if (vmaps.size() < 2)
     throw map.ErrorAt("vehicles", "need at least two vehicles (a leader and a follower)");
+  if (vmaps.size() > static_cast<std::size_t>(kMaxVehicles))
+    throw map.ErrorAt("vehicles", "at most " + std::to_string(kMaxVehicles) + " vehicles");
   std::map<std::string, int> index;
   std::vector<std::vector<std::pair<YamlMap, std::string>>> pending(vmaps.size());
   for (std::size_t i = 0; i < vmaps.size(); ++i) {
     YamlMap& vm = vmaps[i];
     ScenarioVehicle v;
-    v.name = vm.String("name");
-    if (v.name.empty() || index.count(v.name) > 0)
-      throw vm.ErrorAt("name", "must be unique and non-empty");
+    v.name = Identifier(vm, "name");
+    if (index.count(v.name) > 0)
+      throw vm.ErrorAt("name", "must be unique, '" + v.name + "' is not");
     index[v.name] = static_cast<int>(i);
     const std::string role = vm.String("role");
     if (role != "leader" && role != "follower") {
@@ -197,10 +237,16 @@ ScenarioConfig ParseScenario(YamlMap map) {
       v.takeoff_height = Positive(vm, "takeoff_height", 1.0);
       if (v.takeoff_height < 0.3) throw vm.ErrorAt("takeoff_height", "must be >= 0.3 m");
     }
-    v.params = vm.Has("vehicle_file") ? LoadVehicleFile(Resolve(vm, vm.String("vehicle_file")))
-                                      : default_params;
-    v.sensors = vm.Has("sensors_file") ? LoadSensorsFile(Resolve(vm, vm.String("sensors_file")))
-                                       : default_sensors;
+    v.params =
+        vm.Has("vehicle_file")
+            ? Referenced(vm, "vehicle_file",
+                         [&] { return LoadVehicleFile(Resolve(vm, vm.String("vehicle_file"))); })
+            : default_params;
+    v.sensors =
+        vm.Has("sensors_file")
+            ? Referenced(vm, "sensors_file",
+                         [&] { return LoadSensorsFile(Resolve(vm, vm.String("sensors_file"))); })
+            : default_sensors;
     if (v.leader) {
       if (s.leader >= 0) throw vm.ErrorAt("role", "only one leader is allowed");
       s.leader = static_cast<int>(i);
@@ -236,6 +282,23 @@ ScenarioConfig ParseScenario(YamlMap map) {
       if (it == index.end()) throw nm.ErrorAt("vehicle", "unknown vehicle '" + name + "'");
       if (it->second == static_cast<int>(i))
         throw nm.ErrorAt("vehicle", "a vehicle cannot be its own neighbour");
+      for (std::size_t k = 0; k < j; ++k) {
+        if (s.vehicles[i].neighbours[k].index == it->second)
+          throw nm.ErrorAt("vehicle", "neighbour '" + name + "' is listed twice");
+      }
+      const ScenarioVehicle& self = s.vehicles[i];
+      const ScenarioVehicle& other = s.vehicles[static_cast<std::size_t>(it->second)];
+      const double gap = (other.start - self.start).norm();
+      if (!self.sensors.relative.enabled) {
+        s.warnings.push_back(std::string(nm.ErrorAt("vehicle", "").what()) +
+                             "the relative sensor of '" + self.name +
+                             "' is disabled: it never observes neighbour '" + name + "'");
+      } else if (gap > self.sensors.relative.max_range) {
+        s.warnings.push_back(
+            std::string(nm.ErrorAt("vehicle", "").what()) + "neighbour '" + name + "' starts " +
+            std::to_string(gap) + " m away, beyond the relative sensor's max_range " +
+            std::to_string(self.sensors.relative.max_range) + " m of '" + self.name + "'");
+      }
       s.vehicles[i].neighbours[j].index = it->second;
       nm.Finish();
     }
@@ -259,22 +322,33 @@ ScenarioConfig ParseScenario(YamlMap map) {
       YAML::Node wp = lm.Node("waypoints");
       if (!wp.IsSequence() || wp.size() < 2)
         throw lm.ErrorAt("waypoints", "need a list of at least two [x, y, z]");
-      for (const auto& p : wp) {
+      if (wp.size() > static_cast<std::size_t>(kMaxWaypoints))
+        throw lm.ErrorAt("waypoints", "at most " + std::to_string(kMaxWaypoints) + " waypoints");
+      for (std::size_t k = 0; k < wp.size(); ++k) {
+        const YAML::Node p = wp[k];
+        const std::string at = lm.file() + ":" + std::to_string(p.Mark().line + 1) + ":" +
+                               std::to_string(p.Mark().column + 1) + ": key 'leader.waypoints[" +
+                               std::to_string(k) + "]': ";
         if (!p.IsSequence() || p.size() != 3)
-          throw lm.ErrorAt("waypoints", "each waypoint is [x, y, z] in m");
-        try {
-          s.waypoints.emplace_back(p[0].as<double>(), p[1].as<double>(), p[2].as<double>());
-        } catch (const YAML::Exception&) {
-          throw lm.ErrorAt("waypoints", "waypoint entries must be numbers");
+          throw ConfigError(at + "each waypoint is [x, y, z] in m");
+        Vec3 q;
+        for (int a = 0; a < 3; ++a) {
+          double x = kNaN;
+          try {
+            x = p[a].as<double>();
+          } catch (const YAML::Exception&) {
+          }
+          if (!std::isfinite(x)) throw ConfigError(at + "waypoint entries must be finite numbers");
+          q[a] = x;
         }
+        s.waypoints.push_back(q);
       }
       s.leg_duration = Positive(lm, "leg_duration", s.leg_duration);
       s.hold_duration = NonNegative(lm, "hold_duration", s.hold_duration);
     } else if (s.leader_mode == "manual") {
       s.manual_start = lm.Vector3("position", s.manual_start);
       s.walk_box = Positive3(lm, "box", s.walk_box);
-      s.walk_moves = lm.Int("moves", s.walk_moves);
-      if (s.walk_moves < 1) throw lm.ErrorAt("moves", "must be >= 1");
+      s.walk_moves = IntIn(lm, "moves", s.walk_moves, 1, kMaxLeaderMoves);
       std::tie(s.walk_min_leg, s.walk_max_leg) =
           Range(lm, "move_duration", s.walk_min_leg, s.walk_max_leg);
       if (!(s.walk_min_leg > 0.0)) throw lm.ErrorAt("move_duration", "minimum must be > 0");
@@ -290,14 +364,23 @@ ScenarioConfig ParseScenario(YamlMap map) {
   if (map.Has("controller")) {
     YamlMap cm = map.Map("controller");
     s.sample_time = Positive(cm, "sample_time", s.sample_time);
+    {
+      // The controller runs every round(sample_time / physics step) physics steps, so any
+      // other value would silently fly a different sample time than the model's.
+      const double ratio = s.sample_time / kPhysicsStep;
+      if (std::abs(ratio - std::round(ratio)) > 1e-6 || s.sample_time > 1.0) {
+        throw cm.ErrorAt("sample_time",
+                         "must be a multiple of the 0.001 s physics step in "
+                         "[0.001, 1] s, got " +
+                             std::to_string(s.sample_time));
+      }
+    }
     s.horizon = cm.Int("horizon", s.horizon);
     if (s.horizon < 1 || s.horizon > 100) throw cm.ErrorAt("horizon", "must be in [1, 100]");
-    s.integrator_steps = cm.Int("integrator_steps", s.integrator_steps);
-    if (s.integrator_steps < 1) throw cm.ErrorAt("integrator_steps", "must be >= 1");
-    s.max_iterations = cm.Int("max_iterations", s.max_iterations);
-    if (s.max_iterations < 1) throw cm.ErrorAt("max_iterations", "must be >= 1");
-    s.max_initial_iterations = cm.Int("max_initial_iterations", s.max_initial_iterations);
-    if (s.max_initial_iterations < 1) throw cm.ErrorAt("max_initial_iterations", "must be >= 1");
+    s.integrator_steps = IntIn(cm, "integrator_steps", s.integrator_steps, 1, kMaxIntegratorSteps);
+    s.max_iterations = IntIn(cm, "max_iterations", s.max_iterations, 1, 100);
+    s.max_initial_iterations =
+        IntIn(cm, "max_initial_iterations", s.max_initial_iterations, 1, 1000);
     s.kkt_threshold = Positive(cm, "kkt_threshold", s.kkt_threshold);
     s.cpu_budget = Positive(cm, "cpu_budget", s.sample_time);
     s.use_throttle = cm.Bool("use_throttle", s.use_throttle);
@@ -309,6 +392,19 @@ ScenarioConfig ParseScenario(YamlMap map) {
           throw bm.ErrorAt("thrust", "must be [min, max] with 0 <= min < max");
         s.thrust_min = t[0];
         s.thrust_max = t[1];
+        // The collective thrust bounds [N] must bracket every vehicle's weight with margin, or
+        // the vehicles cannot take off (or cannot descend).
+        for (const ScenarioVehicle& v : s.vehicles) {
+          const double weight = v.params.mass * kPlausibleGravity;
+          if (!(s.thrust_max >= kThrustMargin * weight && s.thrust_min < weight)) {
+            throw bm.ErrorAt("thrust", "[min, max] = [" + std::to_string(t[0]) + ", " +
+                                           std::to_string(t[1]) +
+                                           "] N must satisfy min < m g and "
+                                           "max >= " +
+                                           std::to_string(kThrustMargin) + " m g for vehicle '" +
+                                           v.name + "' (m g = " + std::to_string(weight) + " N)");
+          }
+        }
       }
       s.max_attitude_ref = Positive(bm, "attitude_ref", s.max_attitude_ref);
       if (s.max_attitude_ref >= 1.2) throw bm.ErrorAt("attitude_ref", "must be < 1.2 rad");
@@ -385,6 +481,24 @@ ScenarioConfig ParseScenario(YamlMap map) {
   // ---- Faults (after the vehicles, the leader mode and the duration they refer to).
   if (map.Has("faults")) s.faults = ParseFaults(map.Map("faults"), s);
 
+  if (map.Has("envelope")) {
+    YamlMap em = map.Map("envelope");
+    s.envelope.max_altitude = Positive(em, "max_altitude", s.envelope.max_altitude);
+    s.envelope.max_distance = Positive(em, "max_distance", s.envelope.max_distance);
+    em.Finish();
+  }
+  {
+    // The leader flies its NMPC on its own absolute position: without motion capture it can
+    // only dead-reckon (a test of that may be meant, so this is a warning).
+    const ScenarioVehicle& leader = s.vehicles[static_cast<std::size_t>(s.leader)];
+    if (s.leader_mode == "waypoints" && !leader.sensors.mocap.enabled) {
+      s.warnings.push_back(std::string(map.ErrorAt("vehicles", "").what()) + "the leader '" +
+                           leader.name +
+                           "' has no absolute position sensing (mocap disabled): its position "
+                           "is dead-reckoned and drifts");
+    }
+  }
+
   if (map.Has("metrics")) {
     YamlMap mm = map.Map("metrics");
     s.settle_time = NonNegative(mm, "settle_time", s.settle_time);
@@ -406,6 +520,14 @@ double FormationWindowEnd(const ScenarioConfig& s) {
   for (std::size_t i = 0; i < s.vehicles.size(); ++i)
     t = std::min(t, LandingTime(s, static_cast<int>(i)));
   return t;
+}
+
+void CheckDurationFlag(const ScenarioConfig& s, double duration) {
+  if (!std::isfinite(duration) || !(duration > 0.0) || duration > s.duration) {
+    throw ConfigError("--duration: must be finite, > 0 and at most the scenario's duration (" +
+                      std::to_string(s.duration) + " s of " + s.file + "), got " +
+                      std::to_string(duration));
+  }
 }
 
 ScenarioConfig LoadScenarioFile(const std::string& path) {

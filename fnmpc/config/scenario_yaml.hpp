@@ -73,6 +73,21 @@ struct ScenarioFaults {
   }
 };
 
+/// The flight envelope a run is judged against (block `envelope:`): a vehicle above
+/// max_altitude or farther than max_distance (horizontally) from its start fails the run.
+struct FlightEnvelope {
+  double max_altitude = 5.0;   ///< [m] above the ground
+  double max_distance = 20.0;  ///< [m] horizontal distance from the vehicle's start
+};
+
+/// Upper bounds on the work a scenario may ask for (docs/failure.md, "Limits").
+inline constexpr double kMaxScenarioDuration = 3600.0;  ///< [s] simulated
+inline constexpr int kMaxIntegratorSteps = 100;
+inline constexpr int kMaxLeaderMoves = 1000;
+inline constexpr int kMaxWaypoints = 1000;
+inline constexpr int kMaxVehicles = 32;
+inline constexpr double kPhysicsStep = 0.001;  ///< the simulator's physics step [s]
+
 /// The whole scenario.
 struct ScenarioConfig {
   std::string name;
@@ -113,6 +128,11 @@ struct ScenarioConfig {
   double settle_time = 3.0;          ///< steady state: reference stopped at least this long [s]
   double touchdown_speed_max = 0.6;  ///< landed safely: |vz| at touchdown below [m/s]
   double max_tilt_landed = 0.3;      ///< landed safely: final tilt below [rad]
+  FlightEnvelope envelope;           ///< block `envelope:`
+  /// Things a user may mean but should know (a leader without motion capture, a neighbour
+  /// out of sensor reach at the start), "file:line:column: key '...': what"; printed by
+  /// `fnmpc run` and recorded in summary.json.
+  std::vector<std::string> warnings;
 };
 
 /// Reads and validates a scenario file; relative file paths (vehicle_file, sensors_file)
@@ -125,5 +145,9 @@ ScenarioConfig ParseScenario(YamlMap map);
 double LandingTime(const ScenarioConfig& s, int i);
 /// End of the formation window: the earliest landing time of any vehicle [s].
 double FormationWindowEnd(const ScenarioConfig& s);
+
+/// Checks a run duration [s] given on the command line (`--duration`): finite, > 0 and not
+/// longer than the scenario's own duration; throws ConfigError naming the flag otherwise.
+void CheckDurationFlag(const ScenarioConfig& s, double duration);
 
 }  // namespace fnmpc::config

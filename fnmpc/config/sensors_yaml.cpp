@@ -11,9 +11,23 @@ double NonNegative(YamlMap& m, const std::string& key, double fallback) {
   return v;
 }
 
-Eigen::Vector3d NonNegative3(YamlMap& m, const std::string& key, const Eigen::Vector3d& fallback) {
+/// A noise standard deviation the estimators divide by: > 0 (they reject 0 later, without
+/// the file's name, so it is checked here).
+Eigen::Vector3d Noise3(YamlMap& m, const std::string& key, const Eigen::Vector3d& fallback) {
   const Eigen::Vector3d v = m.Vector3(key, fallback);
-  if ((v.array() < 0.0).any()) throw m.ErrorAt(key, "noise standard deviations must be >= 0");
+  if (!(v.array() > 0.0).all()) {
+    throw m.ErrorAt(key, "noise standard deviations must be > 0 (the estimators divide by them)");
+  }
+  return v;
+}
+
+double Noise(YamlMap& m, const std::string& key, double fallback) {
+  const double v = m.Double(key, fallback);
+  if (!(v > 0.0)) {
+    throw m.ErrorAt(key,
+                    "noise standard deviation must be > 0 (the estimators divide by it), got " +
+                        std::to_string(v));
+  }
   return v;
 }
 
@@ -21,10 +35,13 @@ Eigen::Vector3d NonNegative3(YamlMap& m, const std::string& key, const Eigen::Ve
 void ReadCommon(YamlMap& m, SensorSpec* s) {
   s->enabled = m.Bool("enabled", s->enabled);
   s->rate_hz = m.Double("rate_hz", s->rate_hz);
-  if (s->enabled && !(s->rate_hz > 0.0)) {
-    throw m.ErrorAt("rate_hz", "must be > 0, got " + std::to_string(s->rate_hz));
+  if (s->enabled && !(s->rate_hz > 0.0 && s->rate_hz <= kMaxSensorRateHz)) {
+    throw m.ErrorAt("rate_hz",
+                    "must be > 0 and <= " + std::to_string(static_cast<int>(kMaxSensorRateHz)) +
+                        " Hz (the physics rate), got " + std::to_string(s->rate_hz));
   }
   s->latency_s = NonNegative(m, "latency_s", s->latency_s);
+  if (s->latency_s > 10.0) throw m.ErrorAt("latency_s", "must be <= 10 s");
   s->dropout_probability = m.Double("dropout_probability", s->dropout_probability);
   if (!(s->dropout_probability >= 0.0 && s->dropout_probability < 1.0)) {
     throw m.ErrorAt("dropout_probability",
@@ -43,27 +60,27 @@ SensorsConfig ParseSensors(YamlMap map) {
   if (map.Has("mocap")) {
     YamlMap m = map.Map("mocap");
     ReadCommon(m, &c.mocap);
-    c.mocap.noise = NonNegative3(m, "position_noise", c.mocap.noise);
-    c.mocap.noise2 = NonNegative3(m, "attitude_noise", c.mocap.noise2);
+    c.mocap.noise = Noise3(m, "position_noise", c.mocap.noise);
+    c.mocap.noise2 = Noise3(m, "attitude_noise", c.mocap.noise2);
     m.Finish();
   }
   if (map.Has("imu")) {
     YamlMap m = map.Map("imu");
     ReadCommon(m, &c.imu);
-    c.imu.noise = NonNegative3(m, "accel_noise", c.imu.noise);
-    c.imu.noise2 = NonNegative3(m, "gyro_noise", c.imu.noise2);
+    c.imu.noise = Noise3(m, "accel_noise", c.imu.noise);
+    c.imu.noise2 = Noise3(m, "gyro_noise", c.imu.noise2);
     m.Finish();
   }
   if (map.Has("optical_flow")) {
     YamlMap m = map.Map("optical_flow");
     ReadCommon(m, &c.optical_flow);
-    c.optical_flow.noise = NonNegative3(m, "velocity_noise", c.optical_flow.noise);
+    c.optical_flow.noise = Noise3(m, "velocity_noise", c.optical_flow.noise);
     m.Finish();
   }
   if (map.Has("compass")) {
     YamlMap m = map.Map("compass");
     ReadCommon(m, &c.compass);
-    c.compass.noise.x() = Scalar(m, "yaw_noise", c.compass.noise.x());
+    c.compass.noise.x() = Noise(m, "yaw_noise", c.compass.noise.x());
     m.Finish();
   }
   if (map.Has("battery")) {
@@ -76,10 +93,10 @@ SensorsConfig ParseSensors(YamlMap map) {
     YamlMap m = map.Map("relative");
     SensorSpec& r = c.relative;
     ReadCommon(m, &r);
-    r.noise.x() = Scalar(m, "range_noise", r.noise.x());
-    r.noise.y() = Scalar(m, "bearing_noise", r.noise.y());
-    r.noise.z() = Scalar(m, "elevation_noise", r.noise.z());
-    r.noise2.x() = Scalar(m, "relative_yaw_noise", r.noise2.x());
+    r.noise.x() = Noise(m, "range_noise", r.noise.x());
+    r.noise.y() = Noise(m, "bearing_noise", r.noise.y());
+    r.noise.z() = Noise(m, "elevation_noise", r.noise.z());
+    r.noise2.x() = Noise(m, "relative_yaw_noise", r.noise2.x());
     r.range_noise_growth = Scalar(m, "range_noise_growth", r.range_noise_growth);
     r.max_range = m.Double("max_range", r.max_range);
     if (!(r.max_range > 0.0)) {

@@ -1,6 +1,11 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "fnmpc/config/vehicle_yaml.hpp"
 
+#include <fmt/core.h>
+
+#include "fnmpc/core/types.hpp"
+
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -8,12 +13,57 @@
 
 namespace fnmpc::config {
 
+namespace {
+
+double Positive(YamlMap& m, const std::string& key) {
+  const double v = m.Double(key);
+  if (!(v > 0.0)) throw m.ErrorAt(key, "must be > 0, got " + std::to_string(v));
+  return v;
+}
+
+Eigen::Vector3d Positive3(YamlMap& m, const std::string& key) {
+  const Eigen::Vector3d v = m.Vector3(key);
+  if (!(v.array() > 0.0).all()) throw m.ErrorAt(key, "every entry must be > 0");
+  return v;
+}
+
+Eigen::Vector3d NonNegative3(YamlMap& m, const std::string& key) {
+  const Eigen::Vector3d v = m.Vector3(key);
+  if (!(v.array() >= 0.0).all()) throw m.ErrorAt(key, "every entry must be >= 0");
+  return v;
+}
+
+}  // namespace
+
+void CheckVehiclePlausible(const model::VehicleParams& p, const std::string& file) {
+  const double hover = p.mass * kPlausibleGravity / 4.0;  // one rotor's thrust in hover [N]
+  const auto [v_lo, v_hi] = kPlausibleVoltageRange;
+  for (int k = 0; k <= 8; ++k) {
+    const double volt = v_lo + (v_hi - v_lo) * k / 8.0;
+    const double thr = p.throttle.Throttle(hover, volt);
+    if (!(thr > 0.0 && thr < 1.0)) {
+      throw ConfigError(fmt::format(
+          "{}: key 'throttle_polynomial': hover throttle at {:.2f} V is {:.4g}, must be in (0, 1) "
+          "for the battery range {:.1f}-{:.1f} V (mass {:.4g} kg)",
+          file, volt, thr, v_lo, v_hi, p.mass));
+    }
+    const double thr_max = p.throttle.Throttle(kThrustMargin * hover, volt);
+    if (!(thr_max > thr && thr_max < 1.0)) {
+      throw ConfigError(fmt::format(
+          "{}: key 'throttle_polynomial': at {:.2f} V full throttle gives less than {:.1f} x "
+          "the hover thrust (throttle {:.4g} at {:.4g} N per rotor, hover {:.4g} N)",
+          file, volt, kThrustMargin, thr_max, kThrustMargin * hover, hover));
+    }
+  }
+}
+
 model::VehicleParams ParseVehicle(YamlMap map) {
   model::VehicleParams p;
-  p.mass = map.Double("mass");
-  p.inertia = map.Vector3("inertia");
-  p.thrust_constant = map.Double("thrust_constant");
-  p.torque_constant = map.Double("torque_constant");
+  p.mass = Positive(map, "mass");
+  if (p.mass > 100.0) throw map.ErrorAt("mass", "must be <= 100 kg, got " + std::to_string(p.mass));
+  p.inertia = Positive3(map, "inertia");
+  p.thrust_constant = Positive(map, "thrust_constant");
+  p.torque_constant = Positive(map, "torque_constant");
   {
     YamlMap poly = map.Map("throttle_polynomial");
     const YAML::Node rows = poly.Node("coefficients");
@@ -23,40 +73,45 @@ model::VehicleParams ParseVehicle(YamlMap map) {
     for (int i = 0; i < 4; ++i) {
       const YAML::Node row = rows[i];
       if (!row.IsSequence() || static_cast<int>(row.size()) != 4 - i) {
-        throw poly.ErrorAt("coefficients", "row " + std::to_string(i) + " must hold " +
-                                               std::to_string(4 - i) +
-                                               " numbers (powers of voltage 0.." +
-                                               std::to_string(3 - i) + ")");
+        throw poly.ErrorAt("coefficients",
+                           "row " + std::to_string(i) + " must hold " + std::to_string(4 - i) +
+                               " numbers (powers of voltage 0.." + std::to_string(3 - i) + ")");
       }
       for (int j = 0; j < 4 - i; ++j) {
+        double c = kNaN;
         try {
-          p.throttle.c(i, j) = row[j].as<double>();
+          c = row[j].as<double>();
         } catch (const YAML::Exception&) {
-          throw poly.ErrorAt("coefficients", "row " + std::to_string(i) + " entry " +
-                                                 std::to_string(j) + " is not a number");
         }
+        if (!std::isfinite(c)) {
+          throw ConfigError(
+              fmt::format("{}:{}:{}: key 'throttle_polynomial.coefficients': row {} "
+                          "entry {} is not a finite number",
+                          map.file(), row[j].Mark().line + 1, row[j].Mark().column + 1, i, j));
+        }
+        p.throttle.c(i, j) = c;
       }
     }
     poly.Finish();
   }
   {
     YamlMap att = map.Map("attitude");
-    p.attitude_time_constant = att.Vector3("time_constant");
-    p.attitude_gain = att.Vector3("gain");
+    p.attitude_time_constant = Positive3(att, "time_constant");
+    p.attitude_gain = Positive3(att, "gain");
     att.Finish();
   }
   {
     YamlMap pd = map.Map("attitude_pd");
-    p.attitude_kp = pd.Vector3("kp");
-    p.attitude_kd = pd.Vector3("kd");
+    p.attitude_kp = NonNegative3(pd, "kp");
+    p.attitude_kd = NonNegative3(pd, "kd");
     pd.Finish();
   }
-  p.arm_length = map.Double("arm_length");
+  p.arm_length = Positive(map, "arm_length");
   if (map.Has("bias")) {
     YamlMap bias = map.Map("bias");
     p.bias.roll = bias.Double("roll");
     p.bias.pitch = bias.Double("pitch");
-    p.bias.thrust_scale = bias.Double("thrust");
+    p.bias.thrust_scale = Positive(bias, "thrust");
     bias.Finish();
     p.has_bias = true;
   }
@@ -66,6 +121,7 @@ model::VehicleParams ParseVehicle(YamlMap map) {
   } catch (const std::invalid_argument& e) {
     throw map.Error(e.what());
   }
+  CheckVehiclePlausible(p, map.file());
   return p;
 }
 

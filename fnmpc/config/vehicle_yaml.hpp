@@ -2,11 +2,24 @@
 #pragma once
 
 #include <string>
+#include <utility>
 
 #include "fnmpc/config/yaml_reader.hpp"
 #include "fnmpc/model/vehicle_params.hpp"
 
 namespace fnmpc::config {
+
+/// Battery voltage range a vehicle file must be plausible over [V]: the simulated 4S LiPo's
+/// empty and full open-circuit voltages (sim::BatterySettings defaults).
+inline constexpr std::pair<double, double> kPlausibleVoltageRange{13.2, 16.8};
+/// Full throttle must give at least this multiple of the hover thrust at every voltage.
+inline constexpr double kThrustMargin = 1.2;
+inline constexpr double kPlausibleGravity = 9.81;  ///< [m/s^2]
+
+/// Throws ConfigError naming `file` and key 'throttle_polynomial' unless the hover throttle
+/// (thrust m g / 4 per rotor) lies in (0, 1) and kThrustMargin times the hover thrust needs
+/// less than full throttle, at every voltage of kPlausibleVoltageRange.
+void CheckVehiclePlausible(const model::VehicleParams& params, const std::string& file);
 
 /// Reads a vehicle file (format: shared/data-formats.md, "Vehicle file"). Every key of
 /// the format is required except `bias`; unknown, missing or mistyped keys and

@@ -3,8 +3,9 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
+#include <map>
+
+#include "fnmpc/config/text_file.hpp"
 
 namespace fnmpc::config {
 
@@ -12,6 +13,48 @@ namespace {
 std::string Where(const std::string& file, const YAML::Mark& mark) {
   if (mark.is_null()) return file;
   return file + ":" + std::to_string(mark.line + 1) + ":" + std::to_string(mark.column + 1);
+}
+
+/// Rejects a mapping that holds the same key twice (yaml-cpp keeps both, and a lookup would
+/// silently return the first), anywhere in the document.
+void RejectDuplicateKeys(const YAML::Node& node, const std::string& name, int depth,
+                         long* visited) {
+  // Nesting deeper than any file format needs (or an alias to an enclosing node) and alias
+  // chains that expand to millions of nodes are refused before they cost anything.
+  if (depth > 64) throw ConfigError(Where(name, node.Mark()) + ": nesting deeper than 64 levels");
+  if (++*visited > 1000000) {
+    throw ConfigError(Where(name, node.Mark()) + ": more than 10^6 nodes (alias expansion?)");
+  }
+  if (node.IsMap()) {
+    std::map<std::string, YAML::Mark> seen;
+    for (const auto& kv : node) {
+      if (kv.first.IsScalar()) {
+        const auto [it, inserted] = seen.emplace(kv.first.Scalar(), kv.first.Mark());
+        if (!inserted) {
+          throw ConfigError(Where(name, kv.first.Mark()) + ": key '" + kv.first.Scalar() +
+                            "': duplicate key (first at line " +
+                            std::to_string(it->second.line + 1) + ")");
+        }
+      }
+      RejectDuplicateKeys(kv.second, name, depth + 1, visited);
+    }
+  } else if (node.IsSequence()) {
+    for (const auto& e : node) RejectDuplicateKeys(e, name, depth + 1, visited);
+  }
+}
+
+/// "name:line:column" of byte `pos` of `text`.
+std::string WhereByte(const std::string& name, const std::string& text, std::size_t pos) {
+  int line = 1, column = 1;
+  for (std::size_t i = 0; i < pos && i < text.size(); ++i) {
+    if (text[i] == '\n') {
+      ++line;
+      column = 1;
+    } else {
+      ++column;
+    }
+  }
+  return name + ":" + std::to_string(line) + ":" + std::to_string(column);
 }
 
 YamlMap FromRoot(const YAML::Node& root, const std::string& name) {
@@ -22,21 +65,21 @@ YamlMap FromRoot(const YAML::Node& root, const std::string& name) {
 }
 }  // namespace
 
-YamlMap YamlMap::LoadFile(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw ConfigError(path + ": cannot open file");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return LoadString(ss.str(), path);
-}
+YamlMap YamlMap::LoadFile(const std::string& path) { return LoadString(ReadTextFile(path), path); }
 
 YamlMap YamlMap::LoadString(const std::string& text, const std::string& name) {
+  const std::size_t bad = FindInvalidUtf8(text);
+  if (bad != std::string::npos) {
+    throw ConfigError(WhereByte(name, text, bad) + ": invalid UTF-8 byte");
+  }
   YAML::Node root;
   try {
     root = YAML::Load(text);
   } catch (const YAML::Exception& e) {
     throw ConfigError(Where(name, e.mark) + ": YAML syntax error: " + e.msg);
   }
+  long visited = 0;
+  RejectDuplicateKeys(root, name, 0, &visited);
   return FromRoot(root, name);
 }
 
@@ -121,8 +164,8 @@ std::vector<double> YamlMap::Doubles(const std::string& key, int size) {
   const YAML::Node n = Get(key);
   if (!n.IsSequence()) throw ErrorAt(key, "expected a list of numbers");
   if (size >= 0 && static_cast<int>(n.size()) != size) {
-    throw ErrorAt(key, "expected " + std::to_string(size) + " numbers, got " +
-                           std::to_string(n.size()));
+    throw ErrorAt(key,
+                  "expected " + std::to_string(size) + " numbers, got " + std::to_string(n.size()));
   }
   std::vector<double> out;
   for (const auto& e : n) out.push_back(ToDouble(e, key));

@@ -262,6 +262,7 @@ struct Vehicle {
   double collective_guess = 3.0;  // warm start of the collective-throttle inverse [N]
   double voltage = 0.0, soc = 1.0, current = 0.0;
   Vec3 v_prev = Vec3::Zero();
+  Vec3 p_prev = Vec3::Zero();  // position before the last physics step (instability report)
   Vec3 accel = Vec3::Zero();
   Vec3 aero_force = Vec3::Zero(), aero_torque = Vec3::Zero();
   AutopilotStatus status;
@@ -446,9 +447,11 @@ struct World::Impl {
       if (!s.enabled) continue;
       std::int64_t& idx = v.sample_index[kind];
       if (t + kTimeEps < static_cast<double>(idx) / s.rate_hz) continue;
-      do {
-        ++idx;
-      } while (static_cast<double>(idx) / s.rate_hz <= t + kTimeEps);
+      // The next sample index after t in O(1) whatever the rate (a rate above the physics
+      // rate samples once per step); the loop only corrects the rounding of the product.
+      idx =
+          std::max(idx + 1, static_cast<std::int64_t>(std::floor((t + kTimeEps) * s.rate_hz)) + 1);
+      while (static_cast<double>(idx) / s.rate_hz <= t + kTimeEps) ++idx;
       const Mat3 rot_wb = rot[vi];
       Measurement meas;
       meas.kind = static_cast<SensorKind>(kind);
@@ -561,6 +564,30 @@ struct World::Impl {
     }
   }
 
+  /// MuJoCo's instability warnings (mj_checkPos / mj_checkVel / mj_checkAcc: a NaN, Inf or
+  /// value above mjOption::max... in qpos, qvel or qacc). MuJoCo answers them by resetting the
+  /// data to the initial state and goes on, which would teleport every vehicle back to its
+  /// start; the counters are never cleared here, so any count means an instability.
+  void CheckStability(double t) const {
+    int count = 0;
+    for (const int w : {mjWARN_BADQPOS, mjWARN_BADQVEL, mjWARN_BADQACC}) {
+      count += d->warning[w].number;
+    }
+    if (count == 0) return;
+    std::ostringstream os;
+    os << std::setprecision(6) << "[World] MuJoCo instability at t = " << t
+       << " s (warnings: bad qpos " << d->warning[mjWARN_BADQPOS].number << ", bad qvel "
+       << d->warning[mjWARN_BADQVEL].number << ", bad qacc " << d->warning[mjWARN_BADQACC].number
+       << "); state before the step:";
+    for (std::size_t i = 0; i < vehicles.size(); ++i) {
+      const Vehicle& v = vehicles[i];
+      os << " vehicle " << i << " position (" << v.p_prev.x() << ", " << v.p_prev.y() << ", "
+         << v.p_prev.z() << ") m velocity (" << v.v_prev.x() << ", " << v.v_prev.y() << ", "
+         << v.v_prev.z() << ") m/s;";
+    }
+    throw SimulationError(os.str());
+  }
+
   void StepOnce() {
     const double t = Time();
     const double dt = config.physics_dt;
@@ -613,9 +640,13 @@ struct World::Impl {
         torque_w += v.aero_torque;
       }
     }
-    for (auto& v : vehicles) v.v_prev = Velocity(v);
+    for (auto& v : vehicles) {
+      v.v_prev = Velocity(v);
+      v.p_prev = Position(v);
+    }
     // 5. Physics.
     mj_step(m, d);
+    CheckStability(t);
     ++step;
     for (auto& v : vehicles) v.accel = (Velocity(v) - v.v_prev) / dt;
   }

@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -143,6 +144,15 @@ struct TrueState {
 /// [0, 1), negative noise or non-positive range / field of view.
 void ValidateSensors(const SensorsConfig& sensors, const std::string& who);
 
+/// Thrown by World::StepOnce when MuJoCo reports a numerical instability (its warnings for
+/// NaN, Inf or huge positions, velocities or accelerations, after which MuJoCo silently resets
+/// the state to the initial one): the simulation cannot go on honestly. The message holds
+/// the time and every vehicle's position and velocity just before the failed step.
+class SimulationError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 /// Multi-quadrotor world. Rotors are numbered in X configuration: 0 front right (CCW seen
 /// from above), 1 rear left (CCW), 2 front left (CW), 3 rear right (CW).
 class World {
@@ -173,7 +183,8 @@ class World {
 
   /// Advances round(duration / physics_dt) physics steps (duration >= 0) [s].
   void Step(double duration);
-  /// Advances exactly one physics step.
+  /// Advances exactly one physics step. Throws SimulationError when MuJoCo reports an
+  /// instability during the step (the world is unusable afterwards).
   void StepOnce();
 
   /// Pops the earliest delivered measurement (arrival <= time()), in arrival order

@@ -73,7 +73,8 @@ TEST(SensorsYamlTest, ErrorsNameLineAndKey) {
   // Other bad values and types.
   EXPECT_NE(ErrorOf("mocap:\n  latency_s: -0.1\n").find("latency_s"), std::string::npos);
   EXPECT_NE(ErrorOf("mocap:\n  dropout_probability: 1.0\n").find("[0, 1)"), std::string::npos);
-  EXPECT_NE(ErrorOf("imu:\n  accel_noise: [0.1, -0.1, 0.1]\n").find(">= 0"), std::string::npos);
+  EXPECT_NE(ErrorOf("imu:\n  accel_noise: [0.1, -0.1, 0.1]\n").find("must be > 0"),
+            std::string::npos);
   EXPECT_NE(ErrorOf("battery:\n  rate_hz: fast\n").find("expected a number"), std::string::npos);
   EXPECT_NE(ErrorOf("relative:\n  field_of_view: 0\n").find("field_of_view"), std::string::npos);
   // A disabled sensor may carry any rate.

@@ -197,5 +197,39 @@ TEST(WorldTest, ModelCarriesMassAndInertia) {
   EXPECT_NE(xml.find("type=\"plane\""), std::string::npos);
 }
 
+TEST(WorldTest, InstabilityStopsTheSimulationInsteadOfAResetIssue21) {
+  // Given a vehicle whose velocity MuJoCo flags as diverged (above mjOption's 1e10 limit),
+  WorldConfig c = QuietConfig(1);
+  c.vehicles[0].position = Vec3(3.0, -2.0, 1.0);
+  World world(c);
+  world.SetState(0, Vec3(3.0, -2.0, 1.0), Vec3::Zero(), Vec3(1e12, 0.0, 0.0), Vec3::Zero());
+  // When it steps, MuJoCo warns and would reset the world to the start (silently before):
+  // the step throws, naming the time and the state before the step.
+  try {
+    world.StepOnce();
+    FAIL() << "no SimulationError; vehicle at " << world.GetTrueState(0).position.transpose();
+  } catch (const SimulationError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("MuJoCo instability at t = 0"), std::string::npos) << what;
+    EXPECT_NE(what.find("vehicle 0 position (3, -2, 1)"), std::string::npos) << what;
+    EXPECT_NE(what.find("velocity (1e+12"), std::string::npos) << what;
+  }
+}
+
+TEST(WorldTest, SensorFasterThanPhysicsSamplesOncePerStep) {
+  // A rate far above the physics rate must not step its sample index one at a time (1e9 Hz
+  // hung the run); it samples once per physics step.
+  WorldConfig c = QuietConfig(1);
+  c.vehicles[0].sensors.imu.enabled = true;
+  c.vehicles[0].sensors.imu.rate_hz = 1e9;
+  World world(c);
+  world.Step(0.01);
+  int imu = 0;
+  Measurement m;
+  while (world.PopMeasurement(&m)) imu += m.kind == SensorKind::kImu ? 1 : 0;
+  EXPECT_GE(imu, 9);
+  EXPECT_LE(imu, 11);
+}
+
 }  // namespace
 }  // namespace fnmpc::sim

@@ -1,0 +1,112 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: BSD-3-Clause
+# Issue #21: the fnmpc command line refuses bad values and reused folders, tells failure by
+# its exit code (docs/failure.md), stops cleanly on SIGINT, and `report` answers an
+# incomplete folder with one line. Usage: cli_test.sh FNMPC_BINARY SOURCE_DIR
+set -uo pipefail
+fnmpc=$1
+src=$2
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+export PATH=/usr/bin:$PATH
+fails=0
+
+# expect CODES DESCRIPTION -- COMMAND...: runs COMMAND, checks its exit code is one of CODES
+# ("1" or "1|2").
+expect() {
+  local code=$1 what=$2
+  shift 3
+  "$@" >"$tmp/out" 2>"$tmp/err"
+  local rc=$?
+  if [[ ! $rc =~ ^($code)$ ]]; then
+    echo "FAIL: $what: exit $rc, expected $code"
+    sed 's/^/  stderr: /' "$tmp/err" | tail -5
+    fails=$((fails + 1))
+  else
+    echo "ok: $what (exit $rc)"
+  fi
+}
+# stderr_has PATTERN DESCRIPTION
+stderr_has() {
+  if ! grep -q -- "$1" "$tmp/err"; then
+    echo "FAIL: $2: stderr lacks '$1'"
+    sed 's/^/  stderr: /' "$tmp/err" | tail -5
+    fails=$((fails + 1))
+  fi
+}
+
+tri=$src/config/scenarios/triangle.yaml
+# The triangle with its vehicle and sensors paths made absolute, to be edited in $tmp.
+sed -e "s#\.\./vehicles/#$src/config/vehicles/#" -e "s#\.\./sensors/#$src/config/sensors/#" \
+  "$tri" >"$tmp/tri.yaml"
+
+# ---- CLI values (item 10).
+expect 2 "--seed -5 refused" -- "$fnmpc" run "$tri" --seed -5 -o "$tmp/a"
+expect 2 "-o '' refused" -- "$fnmpc" run "$tri" -o ''
+for d in 0 -5 nan inf 200; do
+  expect "1|2" "--duration $d refused" -- "$fnmpc" run "$tri" --duration "$d" -o "$tmp/d"
+  stderr_has "duration" "--duration $d names the flag"
+done
+[[ -e "$tmp/d" ]] && { echo "FAIL: a refused run created its folder"; fails=$((fails + 1)); }
+
+# ---- Reused folder (item 10).
+mkdir -p "$tmp/used" && echo stale >"$tmp/used/ghost.csv"
+expect 1 "non-empty -o refused without --overwrite" -- "$fnmpc" run "$tri" -o "$tmp/used"
+stderr_has "not empty" "refusal says why"
+[[ -f "$tmp/used/ghost.csv" ]] || { echo "FAIL: refused run touched the folder"; fails=$((fails + 1)); }
+
+# ---- Only regular files (item 6): /dev/zero is refused at once, no bad_alloc.
+expect 1 "/dev/zero as scenario refused" -- timeout 20 "$fnmpc" run /dev/zero -o "$tmp/z"
+stderr_has "not a regular file" "/dev/zero refusal"
+expect 1 "/dev/zero as vehicle refused" -- timeout 20 "$fnmpc" check-vehicle /dev/zero
+expect 1 "directory as vehicle refused" -- "$fnmpc" check-vehicle "$src/config"
+stderr_has "is a directory" "directory refusal"
+
+# ---- check-vehicle plausibility (item 7).
+sed 's/^mass: 1.37/mass: 1e300/' "$src/config/vehicles/storm-drone-4.yaml" >"$tmp/heavy.yaml"
+expect 1 "check-vehicle mass 1e300 refused" -- "$fnmpc" check-vehicle "$tmp/heavy.yaml"
+stderr_has "key 'mass'" "mass refusal names the key"
+expect 0 "check-vehicle shipped ok" -- "$fnmpc" check-vehicle "$src/config/vehicles/storm-drone-4.yaml"
+
+# ---- Name with a path (item 4): refused at parse time, nothing written outside.
+sed 's/^  - name: leader$/  - name: ..\/..\/pwned/' "$tmp/tri.yaml" >"$tmp/pwned.yaml"
+expect 1 "vehicle name with a path refused" -- "$fnmpc" run "$tmp/pwned.yaml" -o "$tmp/p"
+stderr_has "key 'vehicles\[0\].name'" "name refusal names the key"
+
+# ---- report on an incomplete folder (item 5): one line, no traceback.
+mkdir -p "$tmp/empty"
+expect 1 "report on a folder without summary" -- "$fnmpc" report "$tmp/empty"
+if grep -q Traceback "$tmp/err"; then echo "FAIL: report printed a traceback"; fails=$((fails + 1)); fi
+mkdir -p "$tmp/half" && echo '{"complete": false, "stopped": "interrupted"}' >"$tmp/half/summary.json"
+expect 1 "report on an interrupted folder" -- "$fnmpc" report "$tmp/half"
+stderr_has "did not complete (interrupted)" "report says why"
+if grep -q Traceback "$tmp/err"; then echo "FAIL: report printed a traceback"; fails=$((fails + 1)); fi
+
+# ---- sysid synth keeps an existing campaign (item 10).
+mkdir -p "$tmp/campaign" && echo "name: mine" >"$tmp/campaign/campaign.yaml"
+expect 1 "sysid synth refuses to overwrite a campaign" -- "$fnmpc" sysid synth "$tmp/campaign"
+grep -q "name: mine" "$tmp/campaign/campaign.yaml" || { echo "FAIL: campaign overwritten"; fails=$((fails + 1)); }
+
+# ---- A run that leaves its envelope exits 3 naming vehicle and reason (item 1).
+sed 's/^metrics:/envelope: {max_altitude: 0.5}\nmetrics:/' "$tmp/tri.yaml" >"$tmp/env.yaml"
+expect 3 "run leaving its envelope exits 3" -- "$fnmpc" run "$tmp/env.yaml" --duration 20 -q -o "$tmp/env"
+stderr_has "vehicle leader: left the flight envelope" "failure names vehicle and reason"
+grep -q '"complete": true' "$tmp/env/summary.json" || { echo "FAIL: summary not complete"; fails=$((fails + 1)); }
+
+# ---- SIGINT (item 10) into a reused folder with --overwrite: emptied first, stops after the
+# current step, summary "complete": false, exit 130.
+mkdir -p "$tmp/int" && echo stale >"$tmp/int/ghost.csv"
+"$fnmpc" run "$tri" -q --overwrite -o "$tmp/int" >"$tmp/out" 2>"$tmp/err" &
+pid=$!
+sleep 3
+kill -INT $pid
+wait $pid
+rc=$?
+if [[ $rc -ne 130 ]]; then echo "FAIL: SIGINT exit $rc, expected 130"; cat "$tmp/err"; fails=$((fails + 1)); else echo "ok: SIGINT exit 130"; fi
+[[ -e "$tmp/int/ghost.csv" ]] && { echo "FAIL: --overwrite kept a stale file"; fails=$((fails + 1)); }
+grep -q '"complete": false' "$tmp/int/summary.json" || { echo "FAIL: interrupted summary not marked"; fails=$((fails + 1)); }
+grep -q '"stopped": "interrupted"' "$tmp/int/run-01/summary.json" || { echo "FAIL: run summary not marked"; fails=$((fails + 1)); }
+[[ -s "$tmp/int/run-01/leader.csv" ]] || { echo "FAIL: interrupted run lost its CSV"; fails=$((fails + 1)); }
+
+echo "cli_test: $fails failure(s)"
+[[ $fails -eq 0 ]]
