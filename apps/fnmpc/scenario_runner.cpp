@@ -847,10 +847,10 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
     const json& vj = vehicles[v.name];
     if (complete && !vj.value("landed_safely", false)) {
       fail(fmt::format(
-          "not landed safely at the end: touchdown vertical speed {} m/s (max {}), motors off "
+          "not landed safely at the end: touchdown vertical speed {} (max {} m/s), motors off "
           "{}, final tilt {:.3f} rad (max {})",
           vj["touchdown_vertical_speed_mps"].is_number()
-              ? fmt::format("{:.3f}", vj["touchdown_vertical_speed_mps"].get<double>())
+              ? fmt::format("{:.3f} m/s", vj["touchdown_vertical_speed_mps"].get<double>())
               : std::string("none (no touchdown)"),
           sc.touchdown_speed_max, vj.value("motors_off_at_end", false),
           vj.value("final_tilt_rad", kNaN), sc.max_tilt_landed));

@@ -434,15 +434,17 @@ ScenarioConfig ParseScenario(YamlMap map) {
     pm.Finish();
   }
   if (!(s.landing_time > s.trajectory_start && s.landing_time < s.duration)) {
-    throw map.Error("phases.landing_time must lie between leader.start_time and duration");
+    throw map.ErrorAt(map.Has("phases") ? "phases" : "duration",
+                      "phases.landing_time must lie between leader.start_time and duration");
   }
   if (!(s.trajectory_start > s.takeoff_time))
-    throw map.Error("leader.start_time must be after phases.takeoff_time");
+    throw map.ErrorAt("leader", "leader.start_time must be after phases.takeoff_time");
   for (const ScenarioVehicle& v : s.vehicles) {
     if (std::isfinite(v.landing_time) &&
         !(v.landing_time > s.trajectory_start && v.landing_time < s.duration)) {
-      throw map.Error("vehicle '" + v.name +
-                      "': landing_time must lie between leader.start_time and duration");
+      throw map.ErrorAt("vehicles", "vehicle '" + v.name +
+                                        "': landing_time must lie between leader.start_time "
+                                        "and duration");
     }
   }
 

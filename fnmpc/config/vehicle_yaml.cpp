@@ -35,24 +35,25 @@ Eigen::Vector3d NonNegative3(YamlMap& m, const std::string& key) {
 
 }  // namespace
 
-void CheckVehiclePlausible(const model::VehicleParams& p, const std::string& file) {
+void CheckVehiclePlausible(const model::VehicleParams& p, const YamlMap& map) {
   const double hover = p.mass * kPlausibleGravity / 4.0;  // one rotor's thrust in hover [N]
   const auto [v_lo, v_hi] = kPlausibleVoltageRange;
   for (int k = 0; k <= 8; ++k) {
     const double volt = v_lo + (v_hi - v_lo) * k / 8.0;
     const double thr = p.throttle.Throttle(hover, volt);
     if (!(thr > 0.0 && thr < 1.0)) {
-      throw ConfigError(fmt::format(
-          "{}: key 'throttle_polynomial': hover throttle at {:.2f} V is {:.4g}, must be in (0, 1) "
-          "for the battery range {:.1f}-{:.1f} V (mass {:.4g} kg)",
-          file, volt, thr, v_lo, v_hi, p.mass));
+      throw map.ErrorAt("throttle_polynomial",
+                        fmt::format("hover throttle at {:.2f} V is {:.4g}, must be in (0, 1) for "
+                                    "the battery range {:.1f}-{:.1f} V (mass {:.4g} kg)",
+                                    volt, thr, v_lo, v_hi, p.mass));
     }
     const double thr_max = p.throttle.Throttle(kThrustMargin * hover, volt);
     if (!(thr_max > thr && thr_max < 1.0)) {
-      throw ConfigError(fmt::format(
-          "{}: key 'throttle_polynomial': at {:.2f} V full throttle gives less than {:.1f} x "
-          "the hover thrust (throttle {:.4g} at {:.4g} N per rotor, hover {:.4g} N)",
-          file, volt, kThrustMargin, thr_max, kThrustMargin * hover, hover));
+      throw map.ErrorAt(
+          "throttle_polynomial",
+          fmt::format("at {:.2f} V full throttle gives less than {:.1f} x the hover thrust "
+                      "(throttle {:.4g} at {:.4g} N per rotor, hover {:.4g} N)",
+                      volt, kThrustMargin, thr_max, kThrustMargin * hover, hover));
     }
   }
 }
@@ -119,9 +120,9 @@ model::VehicleParams ParseVehicle(YamlMap map) {
   try {
     p.Validate();
   } catch (const std::invalid_argument& e) {
-    throw map.Error(e.what());
+    throw map.ErrorAt("mass", e.what());  // the file as a whole; reported at its first key
   }
-  CheckVehiclePlausible(p, map.file());
+  CheckVehiclePlausible(p, map);
   return p;
 }
 

@@ -59,7 +59,9 @@ std::string WhereByte(const std::string& name, const std::string& text, std::siz
 
 YamlMap FromRoot(const YAML::Node& root, const std::string& name) {
   if (!root.IsMap()) {
-    throw ConfigError(Where(name, root.Mark()) + ": expected a mapping at the top level");
+    // An empty document has no mark: its place is the start of the file.
+    const std::string where = root.Mark().is_null() ? name + ":1:1" : Where(name, root.Mark());
+    throw ConfigError(where + ": expected a mapping at the top level");
   }
   return {root, name, ""};
 }

@@ -109,7 +109,7 @@ TEST(InputHardeningTest, DevicesAndFifosAreRefusedWithoutReading) {
   ::unlink(fifo.c_str());
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   const auto t0 = std::chrono::steady_clock::now();
-  for (const std::string path : {std::string("/dev/zero"), std::string("/dev/urandom"), fifo}) {
+  for (const std::string& path : {std::string("/dev/zero"), std::string("/dev/urandom"), fifo}) {
     try {
       YamlMap::LoadFile(path);
       ADD_FAILURE() << path << " was read";
