@@ -28,10 +28,11 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
          if (rc == 128 + SIGINT || rc == 128 + SIGTERM) {
            throw Interrupted(rc, *script + " interrupted");
          }
-         if (rc != 0) {
+         // Status 1: the script refused the folder and said why in one line.
+         if (rc != 0 && rc != 1) {
            fmt::print(stderr, "fnmpc report: {} failed (status {})\n", *script, rc);
-           return kExitError;
          }
+         if (rc != 0) return kExitError;
          return kExitOk;
        }});
 }

@@ -347,6 +347,10 @@ ScenarioConfig ParseScenario(YamlMap map) {
       s.hold_duration = NonNegative(lm, "hold_duration", s.hold_duration);
     } else if (s.leader_mode == "manual") {
       s.manual_start = lm.Vector3("position", s.manual_start);
+      // The world needs the held leader at or above its resting CoM height (0.1 m,
+      // sim::World::kRestHeight); checked here so the error names the key.
+      if (!(s.manual_start.z() >= 0.1))
+        throw lm.ErrorAt("position", "z must be >= 0.1 m (the resting height of the CoM)");
       s.walk_box = Positive3(lm, "box", s.walk_box);
       s.walk_moves = IntIn(lm, "moves", s.walk_moves, 1, kMaxLeaderMoves);
       std::tie(s.walk_min_leg, s.walk_max_leg) =

@@ -5,7 +5,9 @@
 
 #include "fnmpc/core/types.hpp"
 
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -166,7 +168,10 @@ void SaveVehicleFile(const model::VehicleParams& p, const std::string& path) {
     std::ofstream out(tmp);
     if (!out) throw ConfigError(path + ": cannot write file");
     out << os.str();
-    if (!out) throw ConfigError(path + ": write failed");
+    out.flush();
+    if (!out) throw ConfigError(tmp + ": write failed: " + std::strerror(errno));
+    out.close();
+    if (!out) throw ConfigError(tmp + ": write failed: " + std::strerror(errno));
   }
   std::filesystem::rename(tmp, path);
 }

@@ -16,9 +16,9 @@ inline constexpr std::pair<double, double> kPlausibleVoltageRange{13.2, 16.8};
 inline constexpr double kThrustMargin = 1.2;
 inline constexpr double kPlausibleGravity = 9.81;  ///< [m/s^2]
 
-/// Throws ConfigError at key 'throttle_polynomial' of `map` (the vehicle file) unless the hover throttle
-/// (thrust m g / 4 per rotor) lies in (0, 1) and kThrustMargin times the hover thrust needs
-/// less than full throttle, at every voltage of kPlausibleVoltageRange.
+/// Throws ConfigError at key 'throttle_polynomial' of `map` (the vehicle file) unless the hover
+/// throttle (thrust m g / 4 per rotor) lies in (0, 1) and kThrustMargin times the hover thrust
+/// needs less than full throttle, at every voltage of kPlausibleVoltageRange.
 void CheckVehiclePlausible(const model::VehicleParams& params, const YamlMap& map);
 
 /// Reads a vehicle file (format: shared/data-formats.md, "Vehicle file"). Every key of

@@ -80,6 +80,7 @@ if grep -q Traceback "$tmp/err"; then echo "FAIL: report printed a traceback"; f
 mkdir -p "$tmp/half" && echo '{"complete": false, "stopped": "interrupted"}' >"$tmp/half/summary.json"
 expect 1 "report on an interrupted folder" -- "$fnmpc" report "$tmp/half"
 stderr_has "did not complete (interrupted)" "report says why"
+[[ $(wc -l <"$tmp/err") -eq 1 ]] || { echo "FAIL: report printed more than one line"; cat "$tmp/err"; fails=$((fails + 1)); }
 if grep -q Traceback "$tmp/err"; then echo "FAIL: report printed a traceback"; fails=$((fails + 1)); fi
 
 # ---- sysid synth keeps an existing campaign (item 10).
@@ -93,20 +94,27 @@ expect 3 "run leaving its envelope exits 3" -- "$fnmpc" run "$tmp/env.yaml" --du
 stderr_has "vehicle leader: left the flight envelope" "failure names vehicle and reason"
 grep -q '"complete": true' "$tmp/env/summary.json" || { echo "FAIL: summary not complete"; fails=$((fails + 1)); }
 
-# ---- SIGINT (item 10) into a reused folder with --overwrite: emptied first, stops after the
-# current step, summary "complete": false, exit 130.
+# ---- SIGINT (item 10) into a reused folder with --overwrite: emptied first, the run in
+# progress stops after the current step, summaries "complete": false, exit 130. (--runs 50:
+# still running after 3 s on any machine.)
 mkdir -p "$tmp/int" && echo stale >"$tmp/int/ghost.csv"
-"$fnmpc" run "$tri" -q --overwrite -o "$tmp/int" >"$tmp/out" 2>"$tmp/err" &
+"$fnmpc" run "$tri" -q --runs 50 --overwrite -o "$tmp/int" >"$tmp/out" 2>"$tmp/err" &
 pid=$!
 sleep 3
 kill -INT $pid
 wait $pid
 rc=$?
-if [[ $rc -ne 130 ]]; then echo "FAIL: SIGINT exit $rc, expected 130"; cat "$tmp/err"; fails=$((fails + 1)); else echo "ok: SIGINT exit 130"; fi
+if [[ $rc -ne 130 ]]; then
+  echo "FAIL: SIGINT exit $rc, expected 130"; cat "$tmp/err"; fails=$((fails + 1))
+else
+  echo "ok: SIGINT exit 130"
+fi
 [[ -e "$tmp/int/ghost.csv" ]] && { echo "FAIL: --overwrite kept a stale file"; fails=$((fails + 1)); }
 grep -q '"complete": false' "$tmp/int/summary.json" || { echo "FAIL: interrupted summary not marked"; fails=$((fails + 1)); }
-grep -q '"stopped": "interrupted"' "$tmp/int/run-01/summary.json" || { echo "FAIL: run summary not marked"; fails=$((fails + 1)); }
-[[ -s "$tmp/int/run-01/leader.csv" ]] || { echo "FAIL: interrupted run lost its CSV"; fails=$((fails + 1)); }
+last=$(ls -d "$tmp"/int/run-* 2>/dev/null | sort | tail -1)
+grep -q '"stopped": "interrupted"' "$last/summary.json" || { echo "FAIL: $last/summary.json not marked"; fails=$((fails + 1)); }
+[[ -s "$last/leader.csv" ]] || { echo "FAIL: interrupted run lost its CSV"; fails=$((fails + 1)); }
+ls "$last" | grep -q '\.part$' && { echo "FAIL: .part files left"; fails=$((fails + 1)); }
 
 echo "cli_test: $fails failure(s)"
 [[ $fails -eq 0 ]]

@@ -81,6 +81,7 @@ TEST(RunOutcomeTest, VehiclesStillFlyingAtTheEndOrNeverAirborneFail) {
     EXPECT_NE(Reasons(flying, name).find("not landed safely at the end"), std::string::npos)
         << flying["failures"].dump(2);
   }
+  sc.thrust_min = 0.0;  // [0, 1] N: the bounds of the report
   sc.thrust_max = 1.0;
   const json grounded = RunScenario(sc, o, Dir("grounded"));
   // Then the failures say so: airborne at the end, never took off.
