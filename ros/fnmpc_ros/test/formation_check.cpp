@@ -12,6 +12,7 @@
 #include <ros/ros.h>
 #include <ros/spinner.h>
 #include <signal.h>
+#include <sys/wait.h>
 #include <xmlrpcpp/XmlRpcClient.h>
 
 #include <array>
@@ -265,9 +266,24 @@ void RunCli() {
   const std::string dir = g_settings.out_dir + "/cli";
   const std::string cmd = g_settings.cli + " run '" + g_settings.scenario_file + "' -o '" + dir +
                           "' --seed " + std::to_string(g_settings.seed) + " -q > /dev/null";
-  g_obs.cli_rc = std::system(cmd.c_str());
+  const int status = std::system(cmd.c_str());
+  g_obs.cli_rc = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   std::ifstream f(dir + "/run-01/summary.json");
   if (f) g_obs.cli_summary = nlohmann::json::parse(f);
+}
+
+/// `fnmpc run` ran to the end: exit 0, or exit 3 (docs/failure.md) when its only failures
+/// are vehicles not landed at the end (triangle_20s stops at 20 s, during the descent).
+bool CliRan() {
+  if (g_obs.cli_rc == 0) return true;
+  if (g_obs.cli_rc != 3 || !g_obs.cli_summary.value("complete", false)) return false;
+  for (const auto& f : g_obs.cli_summary.value("failures", nlohmann::json::array())) {
+    if (f.value("reason", std::string()).find("not landed safely at the end") ==
+        std::string::npos) {
+      return false;
+    }
+  }
+  return true;
 }
 
 /// The largest per-follower metric, as `fnmpc run` reports it.
@@ -365,7 +381,7 @@ TEST(KillFollower, OthersKeepFlyingAndFormation) {
 /// scenario and seed without the kill (the ROS run matches it: VsCli).
 TEST(KillFollowerNeighbourLoss, SurvivorDropsDeadNeighbourAndHoldsLeaderOffset) {
   ASSERT_TRUE(g_obs.completed);
-  ASSERT_EQ(g_obs.cli_rc, 0) << "fnmpc run failed";
+  ASSERT_TRUE(CliRan()) << "fnmpc run failed (exit " << g_obs.cli_rc << ")";
   ASSERT_TRUE(g_obs.cli_summary.contains("vehicles"));
   const double ratio_bound = Param("steady_ratio_bound");
   for (std::size_t i = 0; i < g_scenario.vehicles.size(); ++i) {
@@ -421,7 +437,7 @@ void ExpectClose(const char* what, double ros, double cli, double tolerance) {
 
 TEST(VsCli, FormationErrorsMatchCli) {
   ASSERT_TRUE(g_obs.completed);
-  ASSERT_EQ(g_obs.cli_rc, 0) << "fnmpc run failed";
+  ASSERT_TRUE(CliRan()) << "fnmpc run failed (exit " << g_obs.cli_rc << ")";
   ASSERT_TRUE(g_obs.cli_summary.contains("mean_formation_error_m"));
   const double tol = Param("relative_tolerance");
   ExpectClose("worst follower, window mean", WorstFollower(false),
