@@ -96,11 +96,11 @@ grep -q '"complete": true' "$tmp/env/summary.json" || { echo "FAIL: summary not 
 
 # ---- SIGINT (item 10) into a reused folder with --overwrite: emptied first, the run in
 # progress stops after the current step, summaries "complete": false, exit 130. (--runs 50:
-# still running after 3 s on any machine.)
+# still running after 5 s on any machine.)
 mkdir -p "$tmp/int" && echo stale >"$tmp/int/ghost.csv"
 "$fnmpc" run "$tri" -q --runs 50 --overwrite -o "$tmp/int" >"$tmp/out" 2>"$tmp/err" &
 pid=$!
-sleep 3
+sleep 5
 kill -INT $pid
 wait $pid
 rc=$?
