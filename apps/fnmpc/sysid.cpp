@@ -409,7 +409,7 @@ int RunSysid(const SysidOptions& o) {
     sane = sane && s.Passed();
   }
   j["complete"] = complete;
-  std::ofstream(dir / "summary.json") << j.dump(2) << "\n";
+  WriteFileAtomically((dir / "summary.json").string(), j.dump(2) + "\n");
   sysid_report::Finalize(dir, final_dir, o.plots);
 
   if (complete) {

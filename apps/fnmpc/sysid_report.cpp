@@ -7,7 +7,9 @@
 
 #include <csignal>
 
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <stdexcept>
 
@@ -61,7 +63,7 @@ nlohmann::json Stage::Json() const {
 void WriteCsv(const fs::path& path, const std::vector<std::string>& header,
               const std::vector<std::vector<double>>& columns) {
   std::ofstream out(path);
-  if (!out) throw std::runtime_error(path.string() + ": cannot write");
+  if (!out) throw std::runtime_error(path.string() + ": cannot write: " + std::strerror(errno));
   for (std::size_t c = 0; c < header.size(); ++c) out << (c ? "," : "") << header[c];
   out << "\n";
   const std::size_t rows = columns.empty() ? 0 : columns[0].size();
@@ -71,7 +73,8 @@ void WriteCsv(const fs::path& path, const std::vector<std::string>& header,
     }
     out << "\n";
   }
-  if (!out) throw std::runtime_error(path.string() + ": write failed");
+  out.flush();  // a full disk shows here, not in the destructor
+  if (!out) throw std::runtime_error(path.string() + ": write failed: " + std::strerror(errno));
 }
 
 fs::path ReportDir(const std::string& out) { return fs::path(out + ".report"); }
