@@ -89,7 +89,8 @@ def sweep(a):
             scen = variant(path, tr, ar, "chatter")
             try:
                 d = os.path.join(a.out, f"{name}-{tr}-{ar}")
-                r = subprocess.run([a.fnmpc, "run", scen, "--runs", str(runs), "-o", d],
+                r = subprocess.run([a.fnmpc, "run", scen, "--runs", str(runs), "-o", d,
+                                    "--overwrite"],
                                    stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
             finally:
                 os.remove(scen)

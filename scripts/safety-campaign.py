@@ -75,8 +75,9 @@ def main():
             continue
         runs = a.runs or default_runs
         out_dir = os.path.join(a.out, name)
+        # --overwrite: a rerun into the same --out replaces the earlier run folders.
         cmd = [a.fnmpc, "run", f"config/scenarios/stress/{name}.yaml", "--runs", str(runs),
-               "-o", out_dir]
+               "-o", out_dir, "--overwrite"]
         print(f"safety-campaign: {name} ({runs} runs)", file=sys.stderr, flush=True)
         r = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         # 3: the runs finished but some vehicle failed (envelope, landing, failsafe;

@@ -49,6 +49,14 @@ void PrepareRunFolder(const std::string& dir, bool overwrite) {
                                ": run folder is not empty (an earlier run?); use "
                                "--overwrite to empty it first or choose another -o");
     }
+    // Only what looks like an earlier run folder is emptied: a mistyped -o (a home or
+    // source folder) must not be wiped.
+    if (!fs::exists(fs::path(dir) / "scenario.yaml") &&
+        !fs::exists(fs::path(dir) / "summary.json")) {
+      throw std::runtime_error(dir +
+                               ": not a run folder of `fnmpc run` (no scenario.yaml or "
+                               "summary.json); --overwrite refuses to empty it");
+    }
     for (const auto& entry : fs::directory_iterator(dir)) fs::remove_all(entry.path());
   }
   fs::create_directories(dir);

@@ -98,6 +98,9 @@ grep -q '"complete": true' "$tmp/env/summary.json" || { echo "FAIL: summary not 
 # progress stops after the current step, summaries "complete": false, exit 130. (--runs 50:
 # still running after 5 s on any machine.)
 mkdir -p "$tmp/int" && echo stale >"$tmp/int/ghost.csv"
+expect 1 "--overwrite refuses a folder that is no run folder" -- "$fnmpc" run "$tri" --overwrite -o "$tmp/int"
+stderr_has "not a run folder" "refusal says why"
+echo '{}' >"$tmp/int/summary.json"
 "$fnmpc" run "$tri" -q --runs 50 --overwrite -o "$tmp/int" >"$tmp/out" 2>"$tmp/err" &
 pid=$!
 sleep 5
