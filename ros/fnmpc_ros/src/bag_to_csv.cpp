@@ -115,7 +115,6 @@ int Convert(const std::string& bag_file, const std::string& scenario_file, const
   bag.close();
 
   const auto trajectory = app::LeaderTrajectory(sc, sc.seed);
-  const double window_end = config::FormationWindowEnd(sc);
   std::filesystem::create_directories(dir);
   nlohmann::json vehicles = nlohmann::json::object();
   double mean_worst = kNaN, steady_worst = kNaN, max_worst = kNaN;
@@ -148,7 +147,8 @@ int Convert(const std::string& bag_file, const std::string& scenario_file, const
       }
       const fnmpc_ros::SolverDiagnostics* dg = nullptr;
       if (auto it = d.diagnostics.find(stamp); it != d.diagnostics.end()) dg = &it->second;
-      const bool window = t >= sc.trajectory_start && t < window_end;
+      // Each vehicle's own window, as `fnmpc run` (issue #21): up to its own landing.
+      const bool window = t >= sc.trajectory_start && t < config::LandingTime(sc, i);
       const bool steady =
           window && trajectory.TimeSinceStop(t - sc.trajectory_start) >= sc.settle_time;
       std::array<double, 2> err{kNaN, kNaN};
@@ -227,7 +227,7 @@ int Convert(const std::string& bag_file, const std::string& scenario_file, const
   s["scenario"] = sc.name;
   s["source"] = "bag " + bag_file;
   s["seed"] = sc.seed;
-  s["formation_window_s"] = {sc.trajectory_start, window_end};
+  s["formation_window_s"] = {sc.trajectory_start, sc.landing_time};
   s["sample_time_s"] = sc.sample_time;
   s["steady_state_formation_error_m"] = Num(steady_worst);
   s["mean_formation_error_m"] = Num(mean_worst);
