@@ -2,7 +2,8 @@
 # SPDX-License-Identifier: BSD-3-Clause
 # Installs every Debian (bookworm) package that fnmpc needs to build, test,
 # benchmark and report. Idempotent; run as root (or with sudo available).
-#   scripts/install-deps.sh            core + MuJoCo + Ceres + IPOPT + plotting
+#   scripts/install-deps.sh            core + MuJoCo + Ceres + IPOPT + plotting + Python
+#                                      module + browser replay (Node.js/npm, Chromium)
 #   scripts/install-deps.sh --with-ros also the ROS 1 packages for ros/
 set -euo pipefail
 
@@ -13,7 +14,14 @@ packages=(
   libmujoco-dev
   libceres-dev coinor-libipopt-dev
   python3-matplotlib python3-numpy
+  python3-dev pybind11-dev python3-pybind11 python3-pytest
+  chromium python3-websocket
 )
+# The replay viewer is bundled with npm (web/replay). Debian's nodejs and npm only when the
+# machine has no Node.js of its own (a NodeSource nodejs ships npm and conflicts with
+# Debian's npm package); bookworm's Node.js 18 runs the pinned esbuild (node >= 18).
+if ! command -v node >/dev/null 2>&1; then packages+=(nodejs); fi
+if ! command -v npm >/dev/null 2>&1; then packages+=(npm); fi
 ros_packages=(
   libroscpp-dev libstd-msgs-dev libgeometry-msgs-dev libsensor-msgs-dev libnav-msgs-dev
   ros-std-msgs ros-geometry-msgs ros-sensor-msgs ros-nav-msgs

@@ -13,6 +13,7 @@
 
 #include "apps/fnmpc/commands.hpp"
 #include "apps/fnmpc/output_files.hpp"
+#include "apps/fnmpc/run_folder.hpp"
 #include "apps/fnmpc/scenario_runner.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
 
@@ -76,67 +77,36 @@ int Run(const RunArgs& a) {
     dir = fmt::format("runs/{}-{:%Y%m%d-%H%M%S}", sc.name, fmt::localtime(now));
   }
   PrepareRunFolder(dir, a.overwrite);
-  std::filesystem::copy_file(a.scenario, PathInside(dir, "scenario.yaml"),
-                             std::filesystem::copy_options::overwrite_existing);
-  const std::uint64_t seed0 = a.seed >= 0 ? static_cast<std::uint64_t>(a.seed) : sc.seed;
   // Ctrl-C / SIGTERM: the current run finishes its physics step, writes what it has and the
   // folder is marked incomplete.
   g_stop_signal = 0;
   std::signal(SIGINT, OnStopSignal);
   std::signal(SIGTERM, OnStopSignal);
-  std::vector<nlohmann::json> runs;
-  bool sim_failed = false;
-  for (int r = 0; r < a.runs && g_stop_signal == 0; ++r) {
-    RunOptions o;
-    o.seed = seed0 + static_cast<std::uint64_t>(r);
-    o.progress = !a.quiet;
-    o.label = fmt::format("[{} run {}/{} seed {}]", sc.name, r + 1, a.runs, o.seed);
-    o.stop = &g_stop_signal;
-    const std::string rdir = fmt::format("{}/run-{:02d}", dir, r + 1);
-    nlohmann::json s = RunScenario(sc, o, rdir);
-    s["dir"] = fmt::format("run-{:02d}", r + 1);
-    if (s.contains("error")) {
-      sim_failed = true;
-      fmt::print(stderr, "fnmpc run: {}: simulation stopped: {}\n", s["dir"].get<std::string>(),
-                 s["error"].get<std::string>());
-    }
-    runs.push_back(s);
-    if (!a.quiet) {
-      fmt::print(
-          stderr,
-          "  steady-state formation error {:.4f} m, max {:.3f} m, solver max {:.2f} ms, "
-          "fallbacks {}, landed safely {}\n",
-          s["steady_state_formation_error_m"].is_number()
-              ? s["steady_state_formation_error_m"].get<double>()
-              : -1.0,
-          s["max_formation_error_m"].is_number() ? s["max_formation_error_m"].get<double>() : -1.0,
-          s["solver_time_max_s"].is_number() ? 1e3 * s["solver_time_max_s"].get<double>() : -1.0,
-          s["fallbacks"].get<long>(), s["landed_safely"].get<bool>());
-    }
-    if (sim_failed) break;
-  }
+  RunFolderOptions options;
+  options.runs = a.runs;
+  options.seed = a.seed;
+  options.progress = !a.quiet;
+  options.scenario_file = a.scenario;
+  options.stop = &g_stop_signal;
+  const nlohmann::json summary = RunFolder(sc, options, dir);
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
-  nlohmann::json summary = runs.empty() ? nlohmann::json::object() : AggregateRuns(runs);
-  summary["scenario_file"] = a.scenario;
-  summary["runs_requested"] = a.runs;
-  const bool complete = g_stop_signal == 0 && !sim_failed &&
-                        static_cast<int>(runs.size()) == a.runs && summary.value("complete", false);
-  summary["complete"] = complete;
-  if (g_stop_signal != 0) summary["stopped"] = "interrupted";
-  WriteFileAtomically(PathInside(dir, "summary.json"),
-                      summary.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+  bool sim_failed = false;
+  for (const auto& r : summary.value("run_summaries", nlohmann::json::array())) {
+    sim_failed = sim_failed || r.contains("error");
+  }
+  const std::size_t runs_done = summary.value("run_summaries", nlohmann::json::array()).size();
   fmt::print("{}\n", dir);
   if (g_stop_signal != 0) {
     fmt::print(stderr,
                "fnmpc run: interrupted (signal {}); {} of {} runs complete, {} marked "
                "\"complete\": false\n",
-               static_cast<int>(g_stop_signal), runs.empty() ? 0 : runs.size() - 1, a.runs,
+               static_cast<int>(g_stop_signal), runs_done == 0 ? 0 : runs_done - 1, a.runs,
                PathInside(dir, "summary.json"));
     return 128 + static_cast<int>(g_stop_signal);
   }
   if (sim_failed) return kExitSimulationError;
-  const auto& failures = summary["failures"];
+  const auto failures = summary.value("failures", nlohmann::json::array());
   for (const auto& f : failures) {
     fmt::print(stderr, "fnmpc run: FAILED {}: vehicle {}: {}\n", f.value("run", std::string()),
                f.value("vehicle", std::string()), f.value("reason", std::string()));
