@@ -174,6 +174,8 @@ def main():
            "td,th{border:1px solid #ccc;padding:2px 6px}table{border-collapse:collapse}</style>"
            "</head><body>" % html.escape(str(summary.get("scenario")))]
     out.append("<h1>Scenario %s</h1>" % html.escape(str(summary.get("scenario"))))
+    out.append("<p><a href='replay.html'>Interactive 3-D replay</a> (replay.html, written by "
+               "<code>fnmpc report</code> after these plots)</p>")
     out.append("<h2>Metrics</h2><table>")
     for k, v in top:
         out.append("<tr><th align=left>%s</th><td>%s</td></tr>" % (html.escape(k), fmt(v)))

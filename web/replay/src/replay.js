@@ -107,18 +107,22 @@ function main() {
   sun.position.set(3, -4, 8);
   scene.add(sun);
 
-  // Extent of the flight.
+  // Extent of the view: every vehicle's start and the leaders' whole flight, so that a
+  // vehicle lost far away (a crash, a fall) does not shrink the formation to a dot.
   const lo = new THREE.Vector3(Infinity, Infinity, 0);
   const hi = new THREE.Vector3(-Infinity, -Infinity, 1);
-  for (let f = 0; f < nf; ++f) {
-    for (let i = 0; i < nv; ++i) {
-      const p = new THREE.Vector3(at(f, i, 0), at(f, i, 1), at(f, i, 2));
-      if (Number.isFinite(p.x + p.y + p.z)) {
-        lo.min(p);
-        hi.max(p);
-      }
+  const include = (f, i) => {
+    const p = new THREE.Vector3(at(f, i, 0), at(f, i, 1), at(f, i, 2));
+    if (Number.isFinite(p.x + p.y + p.z)) {
+      lo.min(p);
+      hi.max(p);
     }
-  }
+  };
+  data.vehicles.forEach((v, i) => {
+    include(0, i);
+    if (v.role === 'leader') for (let f = 0; f < nf; ++f) include(f, i);
+  });
+  if (!Number.isFinite(lo.x + hi.x)) lo.set(-1, -1, 0), hi.set(1, 1, 1);
   const center = lo.clone().add(hi).multiplyScalar(0.5);
   const extent = Math.max(hi.x - lo.x, hi.y - lo.y, 2) + 4;
   const grid = new THREE.GridHelper(Math.ceil(extent), Math.ceil(extent), 0x8a929c, 0x3a4049);
