@@ -128,9 +128,14 @@ void BindScenario(py::module_& m) {
       .def_readonly("sample_time", &ScenarioConfig::sample_time, "Ts [s]")
       .def_readonly("horizon", &ScenarioConfig::horizon, "N")
       .def_readonly("landing_time", &ScenarioConfig::landing_time, "[s]")
+      .def_readonly("warnings", &ScenarioConfig::warnings,
+                    "plausibility warnings of the file (fnmpc run prints them)")
       .def(
           "shortened",
-          [](const ScenarioConfig& s, double duration) { return app::Shortened(s, duration); },
+          [](const ScenarioConfig& s, double duration) {
+            config::CheckDurationFlag(s, duration);
+            return app::Shortened(s, duration);
+          },
           py::arg("duration"),
           "A copy shortened to `duration` [s] (as `fnmpc run --duration`): the leader's "
           "trajectory and the landing are compressed so the run still takes off, flies and "
