@@ -18,9 +18,13 @@ def vehicle_file():
     return os.path.join(SOURCE_DIR, "config", "vehicles", "storm-drone-4.yaml")
 
 
-@pytest.fixture
 def fnmpc_exe():
+    """The fnmpc CLI: $FNMPC_EXE (ctest sets it), else the one of the build tree the module
+    was imported from (<build>/python/fnmpc -> <build>/apps/fnmpc/fnmpc)."""
     exe = os.environ.get("FNMPC_EXE")
     if not exe:
-        raise RuntimeError("FNMPC_EXE (the fnmpc CLI) is not set; run the tests through ctest")
-    return exe
+        import fnmpc
+        exe = os.path.join(os.path.dirname(fnmpc.__file__), "..", "..", "apps", "fnmpc", "fnmpc")
+    if not os.access(exe, os.X_OK):
+        raise RuntimeError(f"fnmpc CLI not found at {exe}; set FNMPC_EXE")
+    return os.path.abspath(exe)

@@ -59,8 +59,8 @@ def without_timing(x):
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory, request):
-    exe = os.environ["FNMPC_EXE"]
-    from conftest import SOURCE_DIR
+    from conftest import SOURCE_DIR, fnmpc_exe
+    exe = fnmpc_exe()
     scenario = os.path.join(SOURCE_DIR, "config", "scenarios", "triangle.yaml")
     base = tmp_path_factory.mktemp("runs")
     cli_dir = base / "cli"
