@@ -347,19 +347,24 @@ function main() {
 function makePlot(canvas, t, nv, vehicles, at, seek) {
   const g = canvas.getContext('2d');
   const nf = t.length;
-  let ymax = 0.05;
+  // y range: the largest error, but at most 5 times the 95th percentile, so that one vehicle
+  // lost far away does not flatten everybody else's curve (larger values are clipped).
+  const errors = [];
   for (let f = 0; f < nf; ++f) {
     for (let i = 0; i < nv; ++i) {
       const e = at(f, i, 8);
-      if (Number.isFinite(e)) ymax = Math.max(ymax, e);
+      if (Number.isFinite(e)) errors.push(e);
     }
   }
+  const sorted = Float64Array.from(errors).sort();
+  const p95 = sorted.length ? sorted[Math.floor(0.95 * (sorted.length - 1))] : 0;
+  const ymax = Math.max(0.05, Math.min(sorted.length ? sorted[sorted.length - 1] : 0, 5 * p95));
   const pad = { l: 44, r: 8, t: 8, b: 18 };
   let w = 0;
   let h = 0;
   let background = null;
   const xOf = (s) => pad.l + ((s - t[0]) / Math.max(t[nf - 1] - t[0], 1e-9)) * (w - pad.l - pad.r);
-  const yOf = (e) => h - pad.b - (e / ymax) * (h - pad.t - pad.b);
+  const yOf = (e) => h - pad.b - (Math.min(e, ymax) / ymax) * (h - pad.t - pad.b);
   function drawBackground() {
     g.clearRect(0, 0, w, h);
     g.fillStyle = 'rgba(20,23,28,0.85)';
@@ -370,7 +375,7 @@ function makePlot(canvas, t, nv, vehicles, at, seek) {
     g.font = '11px sans-serif';
     g.fillText(ymax.toFixed(2) + ' m', 2, pad.t + 9);
     g.fillText('0', pad.l - 12, h - pad.b);
-    g.fillText('formation error', pad.l + 6, pad.t + 12);
+    g.fillText('formation error of each follower', pad.l + 70, pad.t + 12);
     g.fillText(t[nf - 1].toFixed(0) + ' s', w - pad.r - 30, h - 4);
     vehicles.forEach((v, i) => {
       if (v.role === 'leader') return;
