@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
-#include <Eigen/Core>
+#include "fnmpc/core/eigen_abi.hpp"
 #include <cmath>
 
 /// Rotations in ZYX Euler convention: R = Rz(psi) * Ry(theta) * Rx(phi).

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
-#include <Eigen/Core>
+#include "fnmpc/core/eigen_abi.hpp"
 #include <array>
 #include <string_view>
 

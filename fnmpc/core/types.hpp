@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
-#include <Eigen/Core>
 #include <limits>
+
+#include "fnmpc/core/eigen_abi.hpp"
 
 /// Scalar and Eigen aliases shared by every layer.
 namespace fnmpc {

@@ -2,10 +2,10 @@
 #pragma once
 
 #include <Eigen/Cholesky>
-#include <Eigen/Core>
 #include <array>
 #include <cmath>
 
+#include "fnmpc/core/eigen_abi.hpp"
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/estimation/ekf_types.hpp"
 

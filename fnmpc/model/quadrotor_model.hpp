@@ -1,8 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
-#include <Eigen/Core>
-
+#include "fnmpc/core/eigen_abi.hpp"
 #include "fnmpc/core/rotation.hpp"
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/model/vehicle_params.hpp"

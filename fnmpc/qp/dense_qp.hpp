@@ -1,9 +1,10 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
-#include <Eigen/Core>
 #include <memory>
 #include <string_view>
+
+#include "fnmpc/core/eigen_abi.hpp"
 
 namespace fnmpc::qp {
 

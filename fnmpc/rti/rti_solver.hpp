@@ -2,7 +2,6 @@
 #pragma once
 
 #include <Eigen/Cholesky>
-#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <memory>
@@ -12,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "fnmpc/core/eigen_abi.hpp"
 #include "fnmpc/core/stopwatch.hpp"
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/model/rk4.hpp"

@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
-#include <Eigen/Core>
 #include <vector>
+
+#include "fnmpc/core/eigen_abi.hpp"
 
 /// Structural nonzeros of small matrices that are stored densely. The follower models'
 /// transition matrices, cost Hessians and input matrices are mostly zero (a neighbour's
