@@ -5,6 +5,7 @@
 
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/model/input_memory_model.hpp"
+#include "fnmpc/model/rk4.hpp"
 
 /// Extensions of a least-squares problem (fnmpc/ocp/problems.hpp contract) for the
 /// controllers: collision avoidance and input-rate costs. Each wraps any problem, keeps its
@@ -37,6 +38,14 @@ struct WithObstacles {
 
   explicit WithObstacles(const P& p = P{}, double r_min = 0.45)
       : base(p), params(p.params), radius(r_min) {}
+
+  /// Per-stage parameters of the solver contract (docs/rti.md); p[0] = psi_ref [rad].
+  using Params = Vec<kNp>;
+  /// The model's RK4 interval map with its sensitivities (docs/rti.md, the contract).
+  Vec<kNx> Discretise(const Vec<kNx>& x, const Vec<kNu>& u, const Params& p, double dt, int steps,
+                      Mat<kNx, kNx>* A, Mat<kNx, kNu>* B) const {
+    return model::Discretise<Model>(x, u, p[0], params, dt, steps, A, B);
+  }
 
   /// Offsets of obstacle o's position c_o and of its unit normal n_o in p.
   static constexpr int ParamObstacle(int o) { return P::kNp + 6 * o; }
@@ -110,6 +119,14 @@ struct WithInputRate {
   model::AttitudeModelParams params;
 
   explicit WithInputRate(const P& p = P{}) : base(p), params(p.params) {}
+
+  /// Per-stage parameters of the solver contract (docs/rti.md); p[0] = psi_ref [rad].
+  using Params = Vec<kNp>;
+  /// The model's RK4 interval map with its sensitivities (docs/rti.md, the contract).
+  Vec<kNx> Discretise(const Vec<kNx>& x, const Vec<kNu>& u, const Params& p, double dt, int steps,
+                      Mat<kNx, kNx>* A, Mat<kNx, kNu>* B) const {
+    return model::Discretise<Model>(x, u, p[0], params, dt, steps, A, B);
+  }
 
   void StageResidual(const Vec<kNx>& x, const Vec<kNu>& u, const Vec<kNp>& p, Vec<kNy>* y,
                      Mat<kNy, kNx>* yx, Mat<kNy, kNu>* yu) const {

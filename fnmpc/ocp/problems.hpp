@@ -5,12 +5,14 @@
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/model/follower_model.hpp"
 #include "fnmpc/model/quadrotor_model.hpp"
+#include "fnmpc/model/rk4.hpp"
 
 /// Nonlinear least-squares optimal control problems (stage and terminal residuals) on
 /// top of the models. The cost of stage k is 0.5 |y(x_k, u_k, p_k) - yref_k|^2_W and the
 /// terminal cost 0.5 |yN(x_N, p_N) - yrefN|^2_WN; the RtiSolver owns W, references,
-/// parameters and bounds. Each problem states its residual layout; p_k are the stage
-/// parameters (online data), p[0] is always the yaw reference psi_ref [rad].
+/// parameters and bounds. Each problem meets the solver's contract (docs/rti.md) and states
+/// its residual layout; p_k are the stage parameters (online data), here p[0] is always the
+/// yaw reference psi_ref [rad] that the quadrotor models take.
 ///
 /// Residual Jacobians (yx, yu, ynx; nullptr = not wanted) are written only at their
 /// structural nonzeros, the same entries on every call: the caller zeroes them once. The
@@ -28,6 +30,13 @@ struct LeaderProblem {
   using Model = model::QuadrotorModel;
   static constexpr int kNx = 9, kNu = 3, kNy = 11, kNyN = 8, kNp = 1;
   model::AttitudeModelParams params;
+  /// Per-stage parameters of the solver contract (docs/rti.md); p[0] = psi_ref [rad].
+  using Params = Vec<kNp>;
+  /// The model's RK4 interval map with its sensitivities (docs/rti.md, the contract).
+  Vec<kNx> Discretise(const Vec<kNx>& x, const Vec<kNu>& u, const Params& p, double dt, int steps,
+                      Mat<kNx, kNx>* A, Mat<kNx, kNu>* B) const {
+    return model::Discretise<Model>(x, u, p[0], params, dt, steps, A, B);
+  }
 
   void StageResidual(const Vec<kNx>& x, const Vec<kNu>& u, const Vec<kNp>& /*p*/, Vec<kNy>* y,
                      Mat<kNy, kNx>* yx, Mat<kNy, kNu>* yu) const {
@@ -83,6 +92,13 @@ struct FollowerProblem {
   static constexpr int kNx = Model::kNx, kNu = 3, kNy = 6 * kN + 5, kNyN = 6 * kN + 2, kNp = 1;
   model::AttitudeModelParams params;
   TargetFrame frame = TargetFrame::kInertial;
+  /// Per-stage parameters of the solver contract (docs/rti.md); p[0] = psi_ref [rad].
+  using Params = Vec<kNp>;
+  /// The model's RK4 interval map with its sensitivities (docs/rti.md, the contract).
+  Vec<kNx> Discretise(const Vec<kNx>& x, const Vec<kNu>& u, const Params& p, double dt, int steps,
+                      Mat<kNx, kNx>* A, Mat<kNx, kNu>* B) const {
+    return model::Discretise<Model>(x, u, p[0], params, dt, steps, A, B);
+  }
 
   template <int Ny>
   void Rows(const Vec<kNx>& x, Vec<Ny>* y, Mat<Ny, kNx>* yx) const {
@@ -134,6 +150,13 @@ struct ReducedFollowerProblem {
   static constexpr int kNx = 9, kNu = 3, kNy = 6 * kN + 5, kNyN = 6 * kN + 2, kNp = 1 + 6 * kN;
   model::AttitudeModelParams params;
   TargetFrame frame = TargetFrame::kInertial;
+  /// Per-stage parameters of the solver contract (docs/rti.md); p[0] = psi_ref [rad].
+  using Params = Vec<kNp>;
+  /// The model's RK4 interval map with its sensitivities (docs/rti.md, the contract).
+  Vec<kNx> Discretise(const Vec<kNx>& x, const Vec<kNu>& u, const Params& p, double dt, int steps,
+                      Mat<kNx, kNx>* A, Mat<kNx, kNu>* B) const {
+    return model::Discretise<Model>(x, u, p[0], params, dt, steps, A, B);
+  }
 
   /// Offsets of neighbour j's predicted relative position and velocity in p.
   static constexpr int ParamRelPos(int j) { return 1 + 6 * j; }

@@ -11,10 +11,10 @@
 #include <utility>
 #include <vector>
 
+#include "fnmpc/core/assert.hpp"
 #include "fnmpc/core/eigen_abi.hpp"
 #include "fnmpc/core/stopwatch.hpp"
 #include "fnmpc/core/types.hpp"
-#include "fnmpc/model/rk4.hpp"
 #include "fnmpc/qp/dense_qp.hpp"
 #include "fnmpc/rti/rti_settings.hpp"
 #include "fnmpc/rti/sparsity.hpp"
@@ -41,10 +41,97 @@ struct HasStructuredTransition<
                     std::declval<const Mat<Model::kNx, Model::kNx>&>(),
                     std::declval<const Vec<Model::kNx>&>(), std::declval<Vec<Model::kNx>*>()))>>
     : std::true_type {};
+
+// ---- The problem contract (docs/rti.md): detection traits for readable errors. ----
+template <class T, class = void>
+struct HasDims : std::false_type {};
+template <class T>
+struct HasDims<T, std::void_t<decltype(int{T::kNx}), decltype(int{T::kNu}), decltype(int{T::kNy}),
+                              decltype(int{T::kNyN})>> : std::true_type {};
+template <class T, class = void>
+struct HasParams : std::false_type {};
+template <class T>
+struct HasParams<T, std::void_t<typename T::Params>> : std::true_type {};
+template <class T, class = void>
+struct HasDiscretise : std::false_type {};
+template <class T>
+struct HasDiscretise<
+    T, std::void_t<decltype(Vec<T::kNx>(std::declval<const T&>().Discretise(
+           std::declval<const Vec<T::kNx>&>(), std::declval<const Vec<T::kNu>&>(),
+           std::declval<const typename T::Params&>(), 0.0, 1, std::declval<Mat<T::kNx, T::kNx>*>(),
+           std::declval<Mat<T::kNx, T::kNu>*>())))>> : std::true_type {};
+template <class T, class = void>
+struct HasStageResidual : std::false_type {};
+template <class T>
+struct HasStageResidual<
+    T, std::void_t<decltype(std::declval<const T&>().StageResidual(
+           std::declval<const Vec<T::kNx>&>(), std::declval<const Vec<T::kNu>&>(),
+           std::declval<const typename T::Params&>(), std::declval<Vec<T::kNy>*>(),
+           std::declval<Mat<T::kNy, T::kNx>*>(), std::declval<Mat<T::kNy, T::kNu>*>()))>>
+    : std::true_type {};
+template <class T, class = void>
+struct HasTerminalResidual : std::false_type {};
+template <class T>
+struct HasTerminalResidual<
+    T, std::void_t<decltype(std::declval<const T&>().TerminalResidual(
+           std::declval<const Vec<T::kNx>&>(), std::declval<const typename T::Params&>(),
+           std::declval<Vec<T::kNyN>*>(), std::declval<Mat<T::kNyN, T::kNx>*>()))>>
+    : std::true_type {};
+/// Problem::Model when the problem names one (for its optional structured transition
+/// products), else void.
+template <class T, class = void>
+struct ModelOf {
+  using type = void;
+};
+template <class T>
+struct ModelOf<T, std::void_t<typename T::Model>> {
+  using type = typename T::Model;
+};
+
+/// Checks the problem contract before RtiSolver's body uses it, so that the first error a
+/// compiler prints names the missing member. Each check is required by the next ones.
+template <class Problem>
+struct ProblemContract {
+  static constexpr bool kDims = HasDims<Problem>::value;
+  static_assert(kDims,
+                "RtiSolver<Problem>: Problem must declare static constexpr int kNx, kNu, kNy, "
+                "kNyN (state, input, stage residual and terminal residual sizes)");
+  static constexpr bool kParams = kDims && HasParams<Problem>::value;
+  static_assert(!kDims || kParams,
+                "RtiSolver<Problem>: Problem must declare the type Params of its "
+                "per-stage parameters (e.g. `struct Params {};` for none)");
+  static constexpr bool kSizes =
+      kParams && Problem::kNx >= 1 && Problem::kNu >= 1 && Problem::kNy >= 1 && Problem::kNyN >= 1;
+  static_assert(!kParams || kSizes, "RtiSolver<Problem>: kNx, kNu, kNy and kNyN must be >= 1");
+  static_assert(
+      !kSizes || HasDiscretise<Problem>::value,
+      "RtiSolver<Problem>: Problem must have `Vec<kNx> Discretise(const Vec<kNx>& x, const "
+      "Vec<kNu>& u, const Params& p, double dt, int steps, Mat<kNx, kNx>* A, Mat<kNx, "
+      "kNu>* B) const` (the interval map and, when A and B are not null, its Jacobians)");
+  static_assert(
+      !kSizes || HasStageResidual<Problem>::value,
+      "RtiSolver<Problem>: Problem must have `void StageResidual(const Vec<kNx>& x, const "
+      "Vec<kNu>& u, const Params& p, Vec<kNy>* y, Mat<kNy, kNx>* yx, Mat<kNy, kNu>* yu) "
+      "const`");
+  static_assert(!kSizes || HasTerminalResidual<Problem>::value,
+                "RtiSolver<Problem>: Problem must have `void TerminalResidual(const Vec<kNx>& x, "
+                "const Params& p, Vec<kNyN>* y, Mat<kNyN, kNx>* yx) const`");
+};
+
+/// Parameters with every entry zero for Eigen types, value-initialised otherwise.
+template <class P>
+P ZeroParams() {
+  if constexpr (std::is_base_of_v<Eigen::EigenBase<P>, P>) {
+    return P::Zero();
+  } else {
+    return P{};
+  }
+}
 }  // namespace detail
 
-/// Real-time-iteration SQP solver for a nonlinear least-squares OCP `Problem`
-/// (see fnmpc/ocp/problems.hpp):
+/// Real-time-iteration SQP solver for a nonlinear least-squares OCP `Problem`, any type
+/// meeting the contract of docs/rti.md (sizes, Params, Discretise, StageResidual,
+/// TerminalResidual; the quadrotor problems of fnmpc/ocp/problems.hpp are examples):
 ///   min  sum_k 0.5|y(x_k,u_k,p_k) - yref_k|^2_W + 0.5|yN(x_N,p_N) - yrefN|^2_WN
 ///   s.t. x_0 = x0, x_{k+1} = RK4(x_k, u_k, p_k), lbu_k <= u_k <= ubu_k,
 ///        lbx_k <= x_k(i) <= ubx_k for the components i of the StateBoundLayout (k = 1..N),
@@ -58,16 +145,17 @@ struct HasStructuredTransition<
 /// embeds x0, solves the QP and updates the iterate (its time is the feedback latency).
 /// Step() runs Algorithm 1 of the reference work. No heap allocation after construction.
 template <class Problem>
-class RtiSolver {
+class RtiSolver : private detail::ProblemContract<Problem> {
  public:
   static constexpr int kNx = Problem::kNx, kNu = Problem::kNu, kNy = Problem::kNy,
-                       kNyN = Problem::kNyN, kNp = Problem::kNp;
-  using Model = typename Problem::Model;
+                       kNyN = Problem::kNyN;
+  /// The problem's model when it names one (optional structured transition products).
+  using Model = typename detail::ModelOf<Problem>::type;
   using X = Vec<kNx>;
   using U = Vec<kNu>;
   using Y = Vec<kNy>;
   using YN = Vec<kNyN>;
-  using P = Vec<kNp>;
+  using P = typename Problem::Params;  ///< per-stage parameters
   using MX = Mat<kNx, kNx>;
   using MU = Mat<kNx, kNu>;
 
@@ -112,7 +200,7 @@ class RtiSolver {
     yref_n_.setZero();
     w_.setOnes();
     w_n_.setOnes();
-    params_.assign(n_ + 1, P::Zero());
+    params_.assign(n_ + 1, detail::ZeroParams<P>());
     lbx_.assign(n_ + 1, X::Constant(-kInf));
     ubx_.assign(n_ + 1, X::Constant(kInf));
     lbu_.assign(n_, U::Constant(-kInf));
@@ -166,9 +254,12 @@ class RtiSolver {
   }
 
   // ---- Stage data (call before Prepare(); no allocation) ----
+  // Setters check their arguments: a stage index out of range throws std::out_of_range, a
+  // negative or NaN weight std::invalid_argument (programming errors, found at setup).
 
-  /// Diagonal weights of the stage (kNy) and terminal (kNyN) residuals.
+  /// Diagonal weights of the stage (kNy) and terminal (kNyN) residuals, each >= 0.
   void SetWeights(const Y& w, const YN& w_terminal) {
+    CheckWeights("SetWeights", w, w_terminal);
     w_ = w;
     w_n_ = w_terminal;
     BuildCostPatterns();
@@ -181,6 +272,7 @@ class RtiSolver {
     auto in = [](const std::vector<int>& rows, int r) {
       return std::find(rows.begin(), rows.end(), r) != rows.end();
     };
+    CheckWeights("SetWeightValues", w, w_terminal);
     for (int r = 0; r < kNy; ++r) {
       if (w[r] != 0.0 && !in(weighted_rows_, r))
         throw std::invalid_argument("[RtiSolver] SetWeightValues: stage row " + std::to_string(r) +
@@ -195,17 +287,25 @@ class RtiSolver {
     w_n_ = w_terminal;
   }
   /// Reference of stage k = 0..N-1.
-  void SetReference(int k, const Y& yref) { yref_[k] = yref; }
+  void SetReference(int k, const Y& yref) {
+    CheckStage("SetReference", k, 0, n_ - 1);
+    yref_[k] = yref;
+  }
   void SetTerminalReference(const YN& yref) { yref_n_ = yref; }
-  /// Parameters (online data) of node k = 0..N; p[0] is the yaw reference.
-  void SetParameters(int k, const P& p) { params_[k] = p; }
+  /// Parameters (online data) of node k = 0..N, passed to the problem's functions.
+  void SetParameters(int k, const P& p) {
+    CheckStage("SetParameters", k, 0, n_);
+    params_[k] = p;
+  }
   /// Bounds on the layout's state components at node k = 1..N (other entries ignored).
   void SetStateBounds(int k, const X& lb, const X& ub) {
+    CheckStage("SetStateBounds", k, 1, n_);
     lbx_[k] = lb;
     ubx_[k] = ub;
   }
   /// Input bounds of stage k = 0..N-1.
   void SetInputBounds(int k, const U& lb, const U& ub) {
+    CheckStage("SetInputBounds", k, 0, n_ - 1);
     lbu_[k] = lb;
     ubu_[k] = ub;
   }
@@ -243,9 +343,8 @@ class RtiSolver {
     Mat<kNy, kNx>& yx = *yx_buf_;
     Mat<kNy, kNu>& yu = *yu_buf_;
     for (int k = 0; k < n_; ++k) {
-      const X next = model::Discretise<Model>(x_[k], u_[k], params_[k][0], problem_.params,
-                                              settings_.sample_time, settings_.integrator_steps,
-                                              &a_[k], &b_[k]);
+      const X next = problem_.Discretise(x_[k], u_[k], params_[k], settings_.sample_time,
+                                         settings_.integrator_steps, &a_[k], &b_[k]);
       d_[k] = next - x_[k + 1];
       problem_.StageResidual(x_[k], u_[k], params_[k], &y, &yx, &yu);
       const Y wr = w_.cwiseProduct(y - yref_[k]);
@@ -438,9 +537,8 @@ class RtiSolver {
     MX a = MX::Zero();  // Discretise writes only the structural nonzeros
     MU b = MU::Zero();
     for (int k = 0; k < n_; ++k) {
-      const X next =
-          model::Discretise<Model>(x_[k], u_[k], params_[k][0], problem_.params,
-                                   settings_.sample_time, settings_.integrator_steps, &a, &b);
+      const X next = problem_.Discretise(x_[k], u_[k], params_[k], settings_.sample_time,
+                                         settings_.integrator_steps, &a, &b);
       kkt = std::max(kkt, (next - x_[k + 1]).template lpNorm<Eigen::Infinity>());
       problem_.StageResidual(x_[k], u_[k], params_[k], &y, &yx, &yu);
       const Y wr = w_.cwiseProduct(y - yref_[k]);
@@ -514,12 +612,37 @@ class RtiSolver {
   static constexpr int kMaxCompact = 32;
   using MC = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxCompact, kMaxCompact>;
   using VC = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxCompact, 1>;
-  using UC = Eigen::Matrix<double, kNu, Eigen::Dynamic, 0, kNu, kMaxCompact>;
+  // (a single-input problem's UC is one row: Eigen requires row-major storage for it)
+  using UC = Eigen::Matrix<double, kNu, Eigen::Dynamic,
+                           kNu == 1 ? Eigen::RowMajor : Eigen::ColMajor, kNu, kMaxCompact>;
   using BC = Eigen::Matrix<double, Eigen::Dynamic, kNu, 0, kMaxCompact, kNu>;
 
   // Position of u_k in the QP variables: last stage first, so that the Riccati recursion
   // (which eliminates u_{N-1} first) gives a lower-triangular factor. Slacks come after.
-  [[nodiscard]] int UPos(int k) const { return (n_ - 1 - k) * kNu; }
+  [[nodiscard]] int UPos(int k) const {
+    FNMPC_ASSERT(k >= 0 && k < n_);
+    return (n_ - 1 - k) * kNu;
+  }
+  void CheckStage(const char* setter, int k, int first, int last) const {
+    if (k < first || k > last) {
+      throw std::out_of_range(std::string("[RtiSolver] ") + setter + ": stage " +
+                              std::to_string(k) + " outside " + std::to_string(first) + ".." +
+                              std::to_string(last) + " (horizon " + std::to_string(n_) + ")");
+    }
+  }
+  static void CheckWeights(const char* setter, const Y& w, const YN& w_terminal) {
+    auto check = [&](const char* which, const auto& v) {
+      for (int r = 0; r < v.size(); ++r) {
+        if (!(v[r] >= 0.0) || !std::isfinite(v[r])) {
+          throw std::invalid_argument(std::string("[RtiSolver] ") + setter + ": " + which +
+                                      " weight " + std::to_string(r) +
+                                      " must be finite and >= 0, got " + std::to_string(v[r]));
+        }
+      }
+    };
+    check("stage", w);
+    check("terminal", w_terminal);
+  }
 
   // The QP without slack variables: the one Condense and Feedback write (with soft bounds
   // it is tried first, see SolveWithoutSlacks), else the only QP.
@@ -826,7 +949,10 @@ class RtiSolver {
   }
 
   // Block G(k, j) = d x_{k+1} / d u_j (j <= k) of the condensed sensitivities.
-  MU& G(int k, int j) { return g_[static_cast<std::size_t>(k) * (k + 1) / 2 + j]; }
+  MU& G(int k, int j) {
+    FNMPC_ASSERT(j >= 0 && j <= k && k < n_);
+    return g_[static_cast<std::size_t>(k) * (k + 1) / 2 + j];
+  }
 
   // Products with the stage matrices over their structural nonzeros (the neighbour blocks
   // of the full follower models are mostly zero; for L, A_k has 30 of 81 entries).
@@ -942,13 +1068,14 @@ class RtiSolver {
     }
   }
 
-  // Structural nonzeros: the entries that model::Discretise and the problem's residual
+  // Structural nonzeros: the entries that the problem's Discretise and residual
   // functions write (both write the same entries on every call; NaN marks the others).
   void DetectStructure() {
     MX a = MX::Constant(kNaN);
     MU b = MU::Constant(kNaN);
-    model::Discretise<Model>(X::Zero(), U::Zero(), 0.0, problem_.params, settings_.sample_time,
-                             settings_.integrator_steps, &a, &b);
+    const P p0 = detail::ZeroParams<P>();
+    problem_.Discretise(X::Zero(), U::Zero(), p0, settings_.sample_time, settings_.integrator_steps,
+                        &a, &b);
     a_pattern_.SetFromWritten(a);
     b_pattern_.SetFromWritten(b);
     FindReachableStates();
@@ -957,8 +1084,8 @@ class RtiSolver {
     yx_buf_->setConstant(kNaN);
     yu_buf_->setConstant(kNaN);
     ynx_buf_->setConstant(kNaN);
-    problem_.StageResidual(X::Zero(), U::Zero(), P::Zero(), &y, yx_buf_.get(), yu_buf_.get());
-    problem_.TerminalResidual(X::Zero(), P::Zero(), &yn, ynx_buf_.get());
+    problem_.StageResidual(X::Zero(), U::Zero(), p0, &y, yx_buf_.get(), yu_buf_.get());
+    problem_.TerminalResidual(X::Zero(), p0, &yn, ynx_buf_.get());
     // (x == x is false exactly for NaN: the entries written)
     const Eigen::Array<bool, kNy, kNx> yx_mask = yx_buf_->array() == yx_buf_->array();
     const Eigen::Array<bool, kNy, kNu> yu_mask = yu_buf_->array() == yu_buf_->array();
