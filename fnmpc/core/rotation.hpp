@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
-#include "fnmpc/core/eigen_abi.hpp"
 #include <cmath>
+#include "fnmpc/core/eigen_abi.hpp"
 
 /// Rotations in ZYX Euler convention: R = Rz(psi) * Ry(theta) * Rx(phi).
 namespace fnmpc {
