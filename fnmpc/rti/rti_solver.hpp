@@ -118,6 +118,15 @@ struct ProblemContract {
                 "const Params& p, Vec<kNyN>* y, Mat<kNyN, kNx>* yx) const`");
 };
 
+template <class P>
+constexpr int ParamsSize() {
+  if constexpr (std::is_base_of_v<Eigen::EigenBase<P>, P>) {
+    return static_cast<int>(P::SizeAtCompileTime);
+  } else {
+    return 0;
+  }
+}
+
 /// Parameters with every entry zero for Eigen types, value-initialised otherwise.
 template <class P>
 P ZeroParams() {
@@ -156,6 +165,8 @@ class RtiSolver : private detail::ProblemContract<Problem> {
   using Y = Vec<kNy>;
   using YN = Vec<kNyN>;
   using P = typename Problem::Params;  ///< per-stage parameters
+  /// Entries of P when it is an Eigen vector (the quadrotor problems: Vec<kNp>), else 0.
+  static constexpr int kNp = detail::ParamsSize<P>();
   using MX = Mat<kNx, kNx>;
   using MU = Mat<kNx, kNu>;
 
