@@ -19,11 +19,12 @@ export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktra
 unset ASAN_OPTIONS UBSAN_OPTIONS
 # The solver's unit tests once more in a Debug build: FNMPC_ASSERT and Eigen's own checks
 # (index ranges, sizes, aliasing) are compiled out of the build above (NDEBUG). Only the
-# core, qp, ocp and solver-contract tests, to keep it short; tests of executables not built here show up
-# as *_NOT_BUILT in ctest and are excluded, and so is the install test (run above).
+# core, qp, ocp and solver-contract tests, to keep it short; tests of executables not built
+# here show up as *_NOT_BUILT in ctest and are excluded, and so is the install test (run
+# above); the Python and replay tests are not configured.
 debug=${FNMPC_DEBUG_BUILD_DIR:-build-debug}
 cmake -S . -B "$debug" -DCMAKE_BUILD_TYPE=Debug -DFNMPC_BUILD_BENCH=OFF -DFNMPC_WITH_MUJOCO=OFF \
-  -DFNMPC_WITH_IPOPT=OFF
+  -DFNMPC_WITH_IPOPT=OFF -DFNMPC_WITH_PYTHON=OFF -DFNMPC_WITH_REPLAY=OFF
 cmake --build "$debug" -j"$(nproc)" --target core_test qp_test ocp_test problem_contract_test
 (cd "$debug" && ctest --output-on-failure -j"$(nproc)" -E "_NOT_BUILT|install_and_examples")
 bash scripts/test-ros.sh
