@@ -34,6 +34,7 @@ struct RunArgs {
   bool quiet = false;
   bool overwrite = false;
   std::string downwash;  // "", "on", "off"
+  std::string reality;   // "", "on", "off"
 };
 
 /// Creates `dir` or checks that it is empty; with `overwrite` its contents are removed
@@ -69,7 +70,11 @@ int Run(const RunArgs& a) {
     config::CheckDurationFlag(sc, a.duration);
     sc = Shortened(sc, a.duration);
   }
-  if (!a.downwash.empty()) sc.downwash = a.downwash == "on";
+  if (!a.downwash.empty()) {
+    sc.downwash = a.downwash == "on";
+    sc.reality.wake = sc.downwash;  // the switch covers the reality wakes too
+  }
+  if (!a.reality.empty()) sc.reality.enabled = a.reality == "on";
   for (const std::string& w : sc.warnings) fmt::print(stderr, "fnmpc run: warning: {}\n", w);
   std::string dir = a.out;
   if (dir.empty()) {
@@ -135,6 +140,10 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
       "shorten the scenario to this simulated time [s] (fewer legs, earlier landing; at most "
       "the scenario's duration)");
   sub->add_option("--downwash", a->downwash, "override the scenario's downwash switch")
+      ->check(CLI::IsMember({"on", "off"}));
+  sub->add_option("--reality", a->reality,
+                  "override the scenario's reality switch (off: the ideal plant, the controllers' "
+                  "own model; docs/simulator.md)")
       ->check(CLI::IsMember({"on", "off"}));
   sub->add_flag("-q,--quiet", a->quiet, "no progress output");
   registry.push_back({sub, [a] { return Run(*a); }});

@@ -62,6 +62,7 @@ nlohmann::json RunFolder(const config::ScenarioConfig& sc, const RunFolderOption
   nlohmann::json summary = runs.empty() ? nlohmann::json::object() : AggregateRuns(runs);
   summary["scenario_file"] = options.scenario_file;
   summary["runs_requested"] = options.runs;
+  summary["reality"] = sc.reality.enabled;
   summary["complete"] = !Stopped(options) && !sim_failed &&
                         static_cast<int>(runs.size()) == options.runs &&
                         summary.value("complete", false);

@@ -13,9 +13,11 @@
 #include <stdexcept>
 
 #include "apps/fnmpc/output_files.hpp"
+#include "fnmpc/config/vehicle_yaml.hpp"
 #include "fnmpc/core/rotation.hpp"
 #include "fnmpc/formation/trajectory.hpp"
 #include "fnmpc/formation/vehicle_controller.hpp"
+#include "fnmpc/model/true_plant.hpp"
 #include "fnmpc/sim/world.hpp"
 
 namespace fnmpc::app {
@@ -242,7 +244,68 @@ sim::WorldConfig WorldConfigFor(const config::ScenarioConfig& sc, std::uint64_t 
   wc.downwash.enabled = sc.downwash;
   wc.battery.fixed_voltage = !sc.battery_sag;
   wc.seed = seed;
+  if (sc.reality.enabled) ApplyReality(sc, seed, &wc);
   return wc;
+}
+
+void ApplyReality(const config::ScenarioConfig& sc, std::uint64_t seed, sim::WorldConfig* wc) {
+  const config::ScenarioReality& r = sc.reality;
+  for (int i = 0; i < static_cast<int>(sc.vehicles.size()); ++i) {
+    const auto& v = sc.vehicles[i];
+    sim::VehicleSpec& spec = wc->vehicles[i];
+    if (v.has_plant) {
+      spec.params = v.plant;
+      spec.motor_time_constant = v.plant_motor_time_constant;  // NaN: the world's
+    } else {
+      const model::TruePlant t =
+          model::DrawTruePlant(v.params, wc->motor_time_constant, r.plant, seed, i);
+      spec.params = t.params;
+      spec.motor_time_constant = t.motor_time_constant;
+    }
+  }
+  wc->reality.rotor_aerodynamics = r.rotor_aerodynamics;
+  wc->reality.wake = r.wake;
+  wc->sensor_reality.enabled = r.sensors;
+  {
+    const config::ScenarioReality::SensorModels& x = r.sensor_models;
+    sim::SensorRealitySettings& y = wc->sensor_reality;
+    auto set = [](double from, double* to) {
+      if (std::isfinite(from)) *to = from;
+    };
+    set(x.accel_bias, &y.accel_bias);
+    set(x.gyro_bias, &y.gyro_bias);
+    set(x.accel_bias_walk, &y.accel_bias_walk);
+    set(x.gyro_bias_walk, &y.gyro_bias_walk);
+    set(x.latency_jitter, &y.latency_jitter);
+    set(x.burst_share, &y.burst_share);
+    set(x.burst_length, &y.burst_length);
+    set(x.mocap_outlier_rate, &y.mocap_outlier_rate);
+    set(x.mocap_outlier_size, &y.mocap_outlier_size);
+    set(x.estimate_time_constant, &y.estimate_time_constant);
+    if (x.autopilot_estimate >= 0) y.autopilot_estimate = x.autopilot_estimate == 1;
+  }
+  if (r.wake) wc->downwash.enabled = true;
+  const bool turbulence = std::isfinite(r.turbulence_w20) || r.turbulence_sigma.allFinite();
+  sim::WindSettings& w = wc->wind;
+  w.enabled = r.wind.norm() > 0.0 || r.gust_std > 0.0 || turbulence || !r.gusts.empty();
+  w.velocity = r.wind;
+  w.gust_std = r.gust_std;
+  w.gust_time_constant = r.gust_time_constant;
+  w.turbulence = turbulence;
+  if (turbulence) {
+    const double airspeed =
+        std::isfinite(r.turbulence_airspeed) ? r.turbulence_airspeed : r.wind.norm();
+    if (std::isfinite(r.turbulence_w20)) {
+      w.dryden = sim::LowAltitudeDryden(r.turbulence_w20, r.turbulence_height, airspeed);
+    } else {
+      w.dryden.sigma = r.turbulence_sigma;
+      w.dryden.length_scale = r.turbulence_length_scale;
+      w.dryden.airspeed = airspeed;
+    }
+  }
+  for (const config::ScenarioGust& g : r.gusts) {
+    w.discrete_gusts.push_back({g.time, g.duration, g.amplitude});
+  }
 }
 
 double FormationError(const config::ScenarioConfig& sc, int i, const std::vector<Vec3>& positions,
@@ -315,6 +378,17 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
 
   // ---- Logs.
   std::filesystem::create_directories(dir);
+  if (sc.reality.enabled) {
+    // The true plant each vehicle flies (the controllers keep their vehicle files).
+    for (int i = 0; i < nv; ++i) {
+      const std::string path = PathInside(dir, "plant-" + sc.vehicles[i].name + ".yaml");
+      try {
+        config::SaveVehicleFile(world_config.vehicles[i].params, path);
+      } catch (const std::exception& e) {
+        throw std::runtime_error("cannot write " + path + ": " + e.what());
+      }
+    }
+  }
   std::vector<VehicleLog> logs(nv);
   for (int i = 0; i < nv; ++i) {
     const auto& v = sc.vehicles[i];
@@ -541,7 +615,8 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
             "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
             "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
             "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
-            "{:d},{:.6g},{:.6g},{:.6g},{:.6g},{},{},{:d},{},{:d},{},{:.4f},{:.4f},{},{},{}\n",
+            "{:d},{:.6g},{:.6g},{:.6g},{:.6g},{},{},{:d},{},{:d},{},{:.4f},{:.4f},{},{},{},"
+            "{:.5f},{:.5f},{:.5f}\n",
             t, killed[i] ? std::string_view("killed") : formation::ToString(out.phase),
             x.position.x(), x.position.y(), x.position.z(), x.velocity.x(), x.velocity.y(),
             x.velocity.z(), x.euler.x(), x.euler.y(), x.euler.z(), e.position.x(), e.position.y(),
@@ -554,7 +629,8 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
             steady ? 1 : 0, out.cost, out.kkt, out.solver_time, out.solver_cpu_time,
             out.sqp_iterations, out.qp_iterations, out.fallback ? 1 : 0, rti::ToString(out.status),
             out.guarded ? 1 : 0, rej, x.voltage, out.voltage, formation::ToString(out.recovery),
-            formation::ToString(out.recovery_reason), out.active_neighbours);
+            formation::ToString(out.recovery_reason), out.active_neighbours, x.aero_force.x(),
+            x.aero_force.y(), x.aero_force.z());
         L.csv->Write(std::string_view(row.data(), row.size()));
       }
       if (options.progress && t >= next_progress) {
@@ -867,6 +943,7 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
   s["seed"] = options.seed;
   s["duration_s"] = duration;
   s["downwash"] = sc.downwash;
+  s["reality"] = sc.reality.enabled;
   // The scenario's default window; a follower with its own landing_time uses its own
   // (vehicles.<name>.formation_window_s).
   s["formation_window_s"] = {sc.trajectory_start, sc.landing_time};

@@ -27,7 +27,7 @@ inline constexpr const char* kVehicleLogCsvHeader =
     "rel1_x,rel1_y,rel1_z,est_rel1_x,est_rel1_y,est_rel1_z,err1,formation_error,"
     "steady,cost,kkt,solver_time,solver_cpu_time,sqp_iterations,qp_iterations,"
     "fallback,status,guarded,estimator_rejections,voltage,voltage_measured,"
-    "recovery,recovery_reason,active_neighbours\n";
+    "recovery,recovery_reason,active_neighbours,aero_fx,aero_fy,aero_fz\n";
 
 /// Scenario -> library objects: the one mapping used by `fnmpc run` and by the ROS nodes
 /// (ros/fnmpc_ros), so both fly the same controllers in the same world.
@@ -39,8 +39,14 @@ formation::WaypointTrajectory LeaderTrajectory(const config::ScenarioConfig& sce
 /// The controller of vehicle `i` (throws std::invalid_argument on a bad index).
 formation::ControllerConfig ControllerConfigFor(const config::ScenarioConfig& scenario, int i,
                                                 const formation::WaypointTrajectory& trajectory);
-/// The world: every vehicle resting at its start, noise seeded from `seed`.
+/// The world: every vehicle resting at its start, noise seeded from `seed`; with the
+/// scenario's reality on, ApplyReality's true plants and wind.
 sim::WorldConfig WorldConfigFor(const config::ScenarioConfig& scenario, std::uint64_t seed);
+/// Reality (issue #15) on a world built from `scenario`: each vehicle's true plant (its
+/// `plant_file`, else drawn by model::DrawTruePlant for (seed, vehicle index) from the
+/// spread of `reality.plant`) and the wind of `reality.wind`.
+void ApplyReality(const config::ScenarioConfig& scenario, std::uint64_t seed,
+                  sim::WorldConfig* world);
 
 /// Formation error of follower `i` from true positions (one per vehicle) and its true yaw:
 /// the mean over its neighbours j of |(p_j - p_i) in its target frame - d_j| [m]; the

@@ -10,6 +10,7 @@
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/formation/nmpc_weights.hpp"
 #include "fnmpc/formation/recovery.hpp"
+#include "fnmpc/model/true_plant.hpp"
 #include "fnmpc/model/vehicle_params.hpp"
 
 /// Formation scenario files (config/scenarios/*.yaml, every key documented in
@@ -37,6 +38,48 @@ struct ScenarioVehicle {
   Vec3 relative_position_bound{6.0, 6.0, 2.0};  ///< soft bound on |dx_j| per axis [m]
   double takeoff_height = kNaN;  ///< per-vehicle take-off height [m]; NaN: phases.takeoff_height
   double landing_time = kNaN;    ///< per-vehicle start of the landing [s]; NaN: phases.landing_time
+  /// `plant_file`: the vehicle's true plant given explicitly (vehicle-file format with the
+  /// `bias` block as the true attitude biases and thrust scale); flown instead of a draw
+  /// when reality is on. The controller keeps `params`.
+  bool has_plant = false;
+  model::VehicleParams plant;
+  double plant_motor_time_constant = kNaN;  ///< [s]; NaN: the simulator's 0.02 s
+};
+
+/// A discrete "1-cosine" gust (`reality.wind.discrete_gusts`).
+struct ScenarioGust {
+  double time = 0.0;              ///< start [s]
+  double duration = 1.0;          ///< [s]
+  Vec3 amplitude = Vec3::Zero();  ///< peak velocity, world frame [m/s]
+};
+
+/// The `reality:` block (docs/scenarios.md, docs/simulator.md "Reality"): what makes the
+/// simulated plant differ from the controllers' model. Off when the block is absent.
+struct ScenarioReality {
+  bool enabled = false;
+  model::PlantSpread plant;        ///< spread of the true plant around the vehicle file
+  bool rotor_aerodynamics = true;  ///< thrust in the actual inflow, ground effect, rotor drag
+  bool wake = true;  ///< every vehicle's advected, fluctuating wake (also with downwash: false)
+  bool sensors =
+      true;  ///< IMU biases, latency jitter, bursty dropouts, mocap outliers, own attitude estimate
+  /// `reality.sensor_models`: the parameters of those models (sim::SensorRealitySettings;
+  /// NaN / -1: the simulator's default).
+  struct SensorModels {
+    double accel_bias = kNaN, gyro_bias = kNaN, accel_bias_walk = kNaN, gyro_bias_walk = kNaN;
+    double latency_jitter = kNaN, burst_share = kNaN, burst_length = kNaN;
+    double mocap_outlier_rate = kNaN, mocap_outlier_size = kNaN, estimate_time_constant = kNaN;
+    int autopilot_estimate = -1;  ///< -1 default, 0 off, 1 on
+  } sensor_models;
+  Vec3 wind = Vec3::Zero();         ///< constant wind, world frame [m/s]
+  double gust_std = 0.0;            ///< Gauss-Markov gusts: standard deviation [m/s]
+  double gust_time_constant = 2.0;  ///< [s]
+  /// Dryden turbulence: from w20/height (MIL-F-8785C low altitude) when w20 is finite, else
+  /// from sigma/length_scale when sigma is finite; off when both are NaN.
+  double turbulence_w20 = kNaN, turbulence_height = kNaN;  ///< [m/s], [m]
+  Vec3 turbulence_sigma = Vec3::Constant(kNaN);            ///< [m/s]
+  Vec3 turbulence_length_scale = Vec3::Constant(kNaN);     ///< [m]
+  double turbulence_airspeed = kNaN;                       ///< [m/s]; NaN: |wind|
+  std::vector<ScenarioGust> gusts;
 };
 
 /// NMPC weights: the controllers' own struct.
@@ -97,6 +140,7 @@ struct ScenarioConfig {
   std::uint64_t seed = 1;
   bool downwash = false;
   bool battery_sag = true;  ///< false: fixed 16.8 V
+  ScenarioReality reality;  ///< block `reality:`; `fnmpc run --reality on|off` overrides
   std::vector<ScenarioVehicle> vehicles;
   int leader = -1;  ///< index of the leader
   // Leader motion.

@@ -123,6 +123,16 @@ bool Later(const Queued& a, const Queued& b) {
 
 }  // namespace
 
+Vec3 DiscreteGustVelocity(const std::vector<DiscreteGust>& gusts, double t) {
+  Vec3 v = Vec3::Zero();
+  for (const DiscreteGust& g : gusts) {
+    const double x = (t - g.start) / g.duration;
+    if (x < 0.0 || x > 1.0) continue;
+    v += 0.5 * (1.0 - std::cos(2.0 * M_PI * x)) * g.amplitude;
+  }
+  return v;
+}
+
 void ValidateSensors(const SensorsConfig& s, const std::string& who) {
   CheckSpec(s.mocap, who, "mocap");
   CheckSpec(s.imu, who, "imu");
@@ -130,6 +140,22 @@ void ValidateSensors(const SensorsConfig& s, const std::string& who) {
   CheckSpec(s.compass, who, "compass");
   CheckSpec(s.battery, who, "battery");
   CheckSpec(s.relative, who, "relative");
+}
+
+void SensorRealitySettings::Validate() const {
+  for (double x : {accel_bias, gyro_bias, accel_bias_walk, gyro_bias_walk, latency_jitter,
+                   mocap_outlier_size}) {
+    Require(x >= 0.0 && std::isfinite(x),
+            "[World] sensor_reality: biases, walks, jitter and outlier size must be >= 0");
+  }
+  Require(burst_share >= 0.0 && burst_share < 0.5,
+          "[World] sensor_reality.burst_share must be in [0, 0.5)");
+  Require(burst_length > 0.0 && std::isfinite(burst_length),
+          "[World] sensor_reality.burst_length must be > 0");
+  Require(mocap_outlier_rate >= 0.0 && mocap_outlier_rate <= 1.0,
+          "[World] sensor_reality.mocap_outlier_rate must be in [0, 1]");
+  Require(estimate_time_constant > 0.0 && std::isfinite(estimate_time_constant),
+          "[World] sensor_reality.estimate_time_constant must be > 0");
 }
 
 void WorldConfig::Validate() const {
@@ -157,11 +183,24 @@ void WorldConfig::Validate() const {
   Require(b.initial_soc > 0.0 && b.initial_soc <= 1.0,
           "[World] battery initial_soc must be in (0, 1], got " + std::to_string(b.initial_soc));
   downwash.Validate();
+  if (sensor_reality.enabled) sensor_reality.Validate();
+  if (reality.wake) reality.wake_turbulence.Validate();
+  Require(reality.rotor_drag >= 0.0 && std::isfinite(reality.rotor_drag),
+          "[World] reality.rotor_drag must be >= 0");
+  Require(reality.blade.radius > 0.0 && reality.blade.solidity > 0.0 &&
+              reality.blade.lift_slope > 0.0 && reality.blade.air_density > 0.0,
+          "[World] reality.blade needs radius, solidity, lift_slope and air_density > 0");
   Require(wind.velocity.allFinite(), "[World] wind velocity must be finite");
   Require(wind.gust_std >= 0.0,
           "[World] wind gust_std must be >= 0, got " + std::to_string(wind.gust_std));
   Require(wind.gust_time_constant > 0.0, "[World] wind gust_time_constant must be > 0, got " +
                                              std::to_string(wind.gust_time_constant));
+  if (wind.turbulence) wind.dryden.Validate();
+  for (const DiscreteGust& g : wind.discrete_gusts) {
+    Require(std::isfinite(g.start) && g.duration > 0.0 && std::isfinite(g.duration) &&
+                g.amplitude.allFinite(),
+            "[World] discrete gust needs a finite start, duration > 0 and a finite amplitude");
+  }
   {
     const CommandTimeoutSettings& c = command_timeout;
     Require(c.timeout > 0.0 && std::isfinite(c.timeout),
@@ -191,6 +230,10 @@ void WorldConfig::Validate() const {
     Require(!ground || v.position.z() >= World::kRestHeight - 1e-3,
             "[World] " + who + ": initial z must be >= World::kRestHeight (" +
                 Num(World::kRestHeight) + " m, resting on the ground), got " + Num(v.position.z()));
+    Require(std::isnan(v.motor_time_constant) ||
+                (v.motor_time_constant > 0.0 && std::isfinite(v.motor_time_constant)),
+            "[World] " + who + ": motor_time_constant must be NaN or > 0, got " +
+                std::to_string(v.motor_time_constant));
     Require(
         std::isnan(v.initial_throttle) || (v.initial_throttle >= 0.0 && v.initial_throttle <= 1.0),
         "[World] " + who + ": initial_throttle must be NaN or in [0, 1], got " +
@@ -252,6 +295,8 @@ struct Vehicle {
   std::array<Vec3, 4> rotor_b;   // rotor centres, body frame [m]
   std::array<double, 4> spin{};  // +1 CCW, -1 CW (seen from above)
   Eigen::Matrix4d mix_inv;       // [T, tau_x, tau_y, tau_z] -> rotor thrusts
+  double motor_alpha = 0.0;      // exact discretisation of the motor lag over one step
+  double hover_rpm = 1.0;        // rotor speed of hover, m g = 4 T_k rpm^2 [rpm]
   bool direct = false;
   AttitudeCommand command;
   Vec4 throttle = Vec4::Zero();
@@ -269,6 +314,14 @@ struct Vehicle {
   double failsafe_yaw = 0.0;  // yaw held by the command-timeout failsafe [rad]
   double land_timer = 0.0;    // land detector: time with the conditions met [s]
   std::array<std::int64_t, kNumSensorKinds> sample_index{};
+  // Sensor reality (SensorRealitySettings): biases, burst state, own stream, attitude estimate.
+  Vec3 accel_bias = Vec3::Zero(), gyro_bias = Vec3::Zero();
+  std::array<bool, kNumSensorKinds> in_burst{};
+  std::mt19937_64 reality_rng;
+  std::normal_distribution<double> reality_normal{0.0, 1.0};
+  std::uniform_real_distribution<double> reality_uniform{0.0, 1.0};
+  Mat3 attitude_estimate = Mat3::Identity();
+  Vec3 autopilot_gyro = Vec3::Zero();  // the autopilot's own gyro reading [rad/s]
   std::mt19937_64 rng;
   std::normal_distribution<double> normal{0.0, 1.0};
   std::uniform_real_distribution<double> uniform{0.0, 1.0};
@@ -282,8 +335,9 @@ struct World::Impl {
   std::vector<Vehicle> vehicles;
   std::int64_t step = 0;
   std::int64_t autopilot_index = 0;
-  double motor_alpha = 0.0;
   Vec3 gust = Vec3::Zero();
+  std::unique_ptr<DrydenTurbulence> turbulence;  // wind.turbulence only
+  Mat3 wind_frame = Mat3::Identity();            // (u, v, w) of the turbulence -> world
   std::mt19937_64 gust_rng;
   std::normal_distribution<double> gust_normal{0.0, 1.0};
   std::vector<Queued> queue;  // binary heap, see Later()
@@ -291,6 +345,8 @@ struct World::Impl {
   // Per-step scratch, sized at construction.
   std::vector<Mat3> rot;
   std::vector<double> total_thrust;
+  std::vector<WakeHistory> wakes;            // reality.wake: one per vehicle
+  std::vector<WakeFluctuation> fluctuation;  // reality.wake: [source * n + observer]
 
   ~Impl() {
     if (d != nullptr) mj_deleteData(d);
@@ -395,9 +451,10 @@ struct World::Impl {
         f_ss[r] = ThrustForThrottle(p.throttle, v.throttle[r], volt, &v.thrust_guess[r]);
       }
     } else {
-      const Mat3 rot_wb = Rotation(v);
+      const bool own = config.sensor_reality.enabled && config.sensor_reality.autopilot_estimate;
+      const Mat3 rot_wb = own ? v.attitude_estimate : Rotation(v);
       const Vec3 eul = EulerOf(rot_wb);
-      const Vec3 w = Rates(v);
+      const Vec3 w = own ? v.autopilot_gyro : Rates(v);
       const AttitudeCommand& c = v.command;
       const Vec3 k = p.attitude_gain;
       Vec3 e(k.x() * (c.roll + p.bias.roll) - eul.x(), k.y() * (c.pitch + p.bias.pitch) - eul.y(),
@@ -435,6 +492,36 @@ struct World::Impl {
       v.rpm_target[r] = std::sqrt(std::max(0.0, f_ss[r]) / p.thrust_constant);
   }
 
+  /// Once per autopilot tick: bias random walks, and the autopilot's own attitude estimate
+  /// (gyro with bias and noise integrated, corrected toward a noisy external attitude).
+  void UpdateSensorReality(Vehicle& v) {
+    const SensorRealitySettings& sr = config.sensor_reality;
+    const double dt = 1.0 / config.autopilot_rate_hz;
+    auto gauss3 = [&v]() {
+      return Vec3(v.reality_normal(v.reality_rng), v.reality_normal(v.reality_rng),
+                  v.reality_normal(v.reality_rng));
+    };
+    v.accel_bias += sr.accel_bias_walk * std::sqrt(dt) * gauss3();
+    v.gyro_bias += sr.gyro_bias_walk * std::sqrt(dt) * gauss3();
+    if (!sr.autopilot_estimate) return;
+    const Vec3 gyro_noise = v.sensors.imu.enabled ? v.sensors.imu.noise2 : Vec3::Zero();
+    v.autopilot_gyro = Rates(v) + v.gyro_bias + gyro_noise.cwiseProduct(gauss3());
+    // External attitude (mocap-like noise), error in the body frame of the estimate.
+    const Vec3 att_noise = v.sensors.mocap.enabled ? v.sensors.mocap.noise2 : Vec3::Zero();
+    const Vec3 e_true = EulerOf(Rotation(v)) + att_noise.cwiseProduct(gauss3());
+    const Mat3 r_meas = RotationZyx(e_true.x(), e_true.y(), e_true.z());
+    const Mat3 m = v.attitude_estimate.transpose() * r_meas;
+    const Vec3 err(0.5 * (m(2, 1) - m(1, 2)), 0.5 * (m(0, 2) - m(2, 0)), 0.5 * (m(1, 0) - m(0, 1)));
+    const Vec3 omega = v.autopilot_gyro + err / sr.estimate_time_constant;
+    const double angle = omega.norm() * dt;
+    if (angle > 0.0) {
+      v.attitude_estimate =
+          v.attitude_estimate * Eigen::AngleAxisd(angle, omega.normalized()).toRotationMatrix();
+    }
+    // Re-orthonormalise.
+    v.attitude_estimate = Eigen::Quaterniond(v.attitude_estimate).normalized().toRotationMatrix();
+  }
+
   void Push(const Measurement& meas) {
     queue.push_back({meas, seq++});
     std::push_heap(queue.begin(), queue.end(), Later);
@@ -458,6 +545,24 @@ struct World::Impl {
       meas.vehicle = vi;
       meas.stamp = t;
       meas.arrival = t + s.latency_s;
+      const SensorRealitySettings& sr = config.sensor_reality;
+      if (sr.enabled) {
+        meas.arrival += sr.latency_jitter * v.reality_uniform(v.reality_rng);
+        // Bursts hit the radio-linked streams only (motion capture and the relative sensor's
+        // link); the IMU, flow, compass and battery are wired on board.
+        // Gilbert-Elliott: p(enter) = share / length, p(leave) = 1 / length (per sample).
+        const bool radio =
+            meas.kind == SensorKind::kMocapPose || meas.kind == SensorKind::kRelative;
+        const double samples = std::max(1.0, sr.burst_length * s.rate_hz);
+        const double leave = 1.0 / samples;
+        const double enter = sr.burst_share / (1.0 - sr.burst_share) * leave;
+        bool& burst = v.in_burst[kind];
+        if (radio) {
+          const double u = v.reality_uniform(v.reality_rng);
+          burst = burst ? u >= leave : u < enter;
+        }
+        if (burst) continue;
+      }
       auto noise3 = [&](const Vec3& sd) {
         return Vec3(sd.x() * v.normal(v.rng), sd.y() * v.normal(v.rng), sd.z() * v.normal(v.rng));
       };
@@ -490,6 +595,11 @@ struct World::Impl {
       switch (meas.kind) {
         case SensorKind::kMocapPose: {
           meas.position = Position(v) + noise3(s.noise);
+          if (sr.enabled && v.reality_uniform(v.reality_rng) < sr.mocap_outlier_rate) {
+            const Vec3 u(v.reality_normal(v.reality_rng), v.reality_normal(v.reality_rng),
+                         v.reality_normal(v.reality_rng));
+            meas.position += sr.mocap_outlier_size * u.normalized();
+          }
           Vec3 e = EulerOf(rot_wb) + noise3(s.noise2);
           e.z() = WrapAngle(e.z());
           meas.euler = e;
@@ -499,6 +609,10 @@ struct World::Impl {
           const Vec3 g(0.0, 0.0, -config.gravity);
           meas.accel = rot_wb.transpose() * (v.accel - g) + noise3(s.noise);
           meas.gyro = Rates(v) + noise3(s.noise2);
+          if (sr.enabled) {
+            meas.accel += v.accel_bias;
+            meas.gyro += v.gyro_bias;
+          }
           break;
         }
         case SensorKind::kOpticalFlow:
@@ -534,11 +648,38 @@ struct World::Impl {
     v.voltage = std::max(v.voltage, 0.1 * b.empty_voltage);
   }
 
+  /// Air velocity [m/s] of the other vehicles' wakes at `point` as seen by vehicle i: the
+  /// steady jets, or with reality.wake the advected mean plus the fluctuation.
+  Vec3 WakeAir(int i, const Vec3& point) const {
+    const DownwashSettings& dw = config.downwash;
+    const int n = static_cast<int>(vehicles.size());
+    Vec3 air = Vec3::Zero();
+    for (int j = 0; j < n; ++j) {
+      if (j == i) continue;
+      if (!config.reality.wake) {
+        air += DownwashVelocity(dw, Position(vehicles[j]), rot[j].col(2), total_thrust[j], point);
+        continue;
+      }
+      double uc = 0.0, hw = 0.0, r = 0.0;
+      Vec3 axis;
+      air += wakes[j].MeanVelocity(Time(), point, &uc, &hw, &axis, &r);
+      air += fluctuation[j * n + i].Velocity(axis, uc, hw, r);
+    }
+    return air;
+  }
+
   void ApplyAero() {
+    if (config.reality.rotor_aerodynamics || config.reality.wake) {
+      ApplyRealAero();
+      return;
+    }
     const DownwashSettings& dw = config.downwash;
     const WindSettings& wind = config.wind;
     const Vec3 c_rotor = 0.25 * config.drag_coefficient;  // drag split over the 4 rotor points
     const int n = static_cast<int>(vehicles.size());
+    Vec3 wind_air = wind.velocity + gust;
+    if (turbulence) wind_air += wind_frame * turbulence->value();
+    if (!wind.discrete_gusts.empty()) wind_air += DiscreteGustVelocity(wind.discrete_gusts, Time());
     for (int i = 0; i < n; ++i) {
       Vehicle& v = vehicles[i];
       v.aero_force.setZero();
@@ -549,7 +690,7 @@ struct World::Impl {
         const Vec3 arm_w = rot[i] * v.rotor_b[r];
         const Vec3 point = pos + arm_w;
         Vec3 air = Vec3::Zero();
-        if (wind.enabled) air += wind.velocity + gust;
+        if (wind.enabled) air += wind_air;
         if (dw.enabled) {
           for (int j = 0; j < n; ++j) {
             if (j == i) continue;
@@ -588,6 +729,60 @@ struct World::Impl {
     throw SimulationError(os.str());
   }
 
+  /// ApplyAero with the reality models: per rotor the air of the wind and the wakes, drag on
+  /// it, the thrust change of the actual inflow and ground effect, rotor drag.
+  void ApplyRealAero() {
+    const AeroRealitySettings& re = config.reality;
+    const WindSettings& wind = config.wind;
+    const Vec3 c_rotor = 0.25 * config.drag_coefficient;
+    const int n = static_cast<int>(vehicles.size());
+    Vec3 wind_air = Vec3::Zero();
+    if (wind.enabled) {
+      wind_air = wind.velocity + gust;
+      if (turbulence) wind_air += wind_frame * turbulence->value();
+      if (!wind.discrete_gusts.empty())
+        wind_air += DiscreteGustVelocity(wind.discrete_gusts, Time());
+    }
+    const double t = Time();
+    if (re.wake && config.downwash.enabled) {
+      // Fluctuations advance with the scales at the observer's centre of mass.
+      for (int j = 0; j < n; ++j) {
+        for (int i = 0; i < n; ++i) {
+          if (i == j) continue;
+          double uc = 0.0, hw = 0.0;
+          wakes[j].MeanVelocity(t, Position(vehicles[i]), &uc, &hw);
+          fluctuation[j * n + i].Step(config.physics_dt, uc, hw);
+        }
+      }
+    }
+    for (int i = 0; i < n; ++i) {
+      Vehicle& v = vehicles[i];
+      v.aero_force.setZero();
+      v.aero_torque.setZero();
+      const Vec3 pos = Position(v);
+      const Vec3 vel = Velocity(v);
+      const Vec3 axis = rot[i].col(2);
+      for (int r = 0; r < 4; ++r) {
+        const Vec3 arm_w = rot[i] * v.rotor_b[r];
+        const Vec3 point = pos + arm_w;
+        Vec3 air = wind_air;
+        if (config.downwash.enabled) air += WakeAir(i, point);
+        const Vec3 rel = air - vel;
+        Vec3 f = QuadraticDrag(rot[i], c_rotor, rel);
+        if (re.rotor_aerodynamics && !v.status.motors_killed) {
+          const double still = v.params.thrust_constant * v.rpm[r] * v.rpm[r];
+          const double omega = v.rpm[r] * kRpmToRadPerSec;
+          double ratio = AxialInflowThrustRatio(re.blade, still, omega, -rel.dot(axis));
+          if (config.ground) ratio *= GroundEffectRatio(re.blade.radius, point.z());
+          f += (ratio - 1.0) * still * axis;
+          f += RotorDrag(re.rotor_drag, v.params.mass, v.rpm[r] / v.hover_rpm, axis, rel);
+        }
+        v.aero_force += f;
+        v.aero_torque += arm_w.cross(f);
+      }
+    }
+  }
+
   void StepOnce() {
     const double t = Time();
     const double dt = config.physics_dt;
@@ -598,6 +793,9 @@ struct World::Impl {
       do {
         ++autopilot_index;
       } while (static_cast<double>(autopilot_index) / config.autopilot_rate_hz <= t + kTimeEps);
+      if (config.sensor_reality.enabled) {
+        for (auto& v : vehicles) UpdateSensorReality(v);
+      }
       for (auto& v : vehicles) Autopilot(v);
     }
     // 2. Sensors sample the state at t.
@@ -606,7 +804,7 @@ struct World::Impl {
     for (int i = 0; i < n; ++i) {
       Vehicle& v = vehicles[i];
       const model::VehicleParams& p = v.params;
-      v.rpm += motor_alpha * (v.rpm_target - v.rpm);
+      v.rpm += v.motor_alpha * (v.rpm_target - v.rpm);
       if (v.status.motors_killed) v.rpm.setZero();
       UpdateBattery(v);
       Vec3 torque_b = Vec3::Zero();
@@ -620,6 +818,7 @@ struct World::Impl {
         torque_b.z() -= v.spin[r] * p.torque_constant * w2;
       }
       total_thrust[i] = thrust;
+      if (config.reality.wake) wakes[i].Record(t, Position(v), rot[i].col(2), thrust);
       Eigen::Map<Vec3> force_w(d->xfrc_applied + 6 * v.body);
       Eigen::Map<Vec3> torque_w(d->xfrc_applied + 6 * v.body + 3);
       force_w = rot[i].col(2) * thrust;
@@ -631,7 +830,8 @@ struct World::Impl {
       const double sd = config.wind.gust_std * std::sqrt(1.0 - phi * phi);
       for (int a = 0; a < 3; ++a) gust[a] = phi * gust[a] + sd * gust_normal(gust_rng);
     }
-    if (config.wind.enabled || config.downwash.enabled) {
+    if (turbulence) turbulence->Step();
+    if (config.wind.enabled || config.downwash.enabled || config.reality.rotor_aerodynamics) {
       ApplyAero();
       for (auto& v : vehicles) {
         Eigen::Map<Vec3> force_w(d->xfrc_applied + 6 * v.body);
@@ -662,10 +862,20 @@ World::World(const WorldConfig& config) : impl_(std::make_unique<Impl>()) {
   w.vehicles.resize(n);
   w.rot.assign(n, Mat3::Identity());
   w.total_thrust.assign(n, 0.0);
-  w.motor_alpha = 1.0 - std::exp(-config.physics_dt / config.motor_time_constant);
   std::seed_seq gust_seed{static_cast<std::uint32_t>(config.seed),
                           static_cast<std::uint32_t>(config.seed >> 32), 0xFFFFu};
   w.gust_rng.seed(gust_seed);
+  if (config.wind.enabled && config.wind.turbulence) {
+    w.turbulence =
+        std::make_unique<DrydenTurbulence>(config.wind.dryden, config.physics_dt, config.seed);
+    const Vec3 horizontal(config.wind.velocity.x(), config.wind.velocity.y(), 0.0);
+    if (horizontal.norm() > 0.0) {
+      const Vec3 u = horizontal.normalized();
+      w.wind_frame.col(0) = u;
+      w.wind_frame.col(1) = Vec3::UnitZ().cross(u);
+      w.wind_frame.col(2) = Vec3::UnitZ();
+    }
+  }
   for (int i = 0; i < n; ++i) {
     const VehicleSpec& spec = config.vehicles[i];
     Vehicle& v = w.vehicles[i];
@@ -686,6 +896,11 @@ World::World(const WorldConfig& config) : impl_(std::make_unique<Impl>()) {
       mix.col(r) << 1.0, v.rotor_b[r].y(), -v.rotor_b[r].x(), -v.spin[r] * ratio;
     }
     v.mix_inv = mix.inverse();
+    const double tau = std::isnan(spec.motor_time_constant) ? config.motor_time_constant
+                                                            : spec.motor_time_constant;
+    v.motor_alpha = 1.0 - std::exp(-config.physics_dt / tau);
+    v.hover_rpm = std::sqrt(spec.params.mass * std::max(config.gravity, 1.0) /
+                            (4.0 * spec.params.thrust_constant));
     v.voltage = config.battery.full_voltage;
     v.soc = config.battery.fixed_voltage ? 1.0 : config.battery.initial_soc;
     if (!config.battery.fixed_voltage) {
@@ -696,6 +911,18 @@ World::World(const WorldConfig& config) : impl_(std::make_unique<Impl>()) {
                        static_cast<std::uint32_t>(config.seed >> 32),
                        static_cast<std::uint32_t>(i)};
     v.rng.seed(seed);
+    if (config.sensor_reality.enabled) {
+      std::seed_seq rseed{static_cast<std::uint32_t>(config.seed),
+                          static_cast<std::uint32_t>(config.seed >> 32),
+                          static_cast<std::uint32_t>(i), 0x5E45u};
+      v.reality_rng.seed(rseed);
+      const SensorRealitySettings& sr = config.sensor_reality;
+      for (int a = 0; a < 3; ++a) {
+        v.accel_bias[a] = sr.accel_bias * v.reality_normal(v.reality_rng);
+        v.gyro_bias[a] = sr.gyro_bias * v.reality_normal(v.reality_rng);
+      }
+      v.attitude_estimate = RotationZyx(0.0, 0.0, spec.yaw);
+    }
     if (std::isfinite(spec.initial_throttle)) {
       v.direct = true;
       v.throttle.setConstant(spec.initial_throttle);
@@ -703,6 +930,16 @@ World::World(const WorldConfig& config) : impl_(std::make_unique<Impl>()) {
       v.rpm = v.rpm_target;
     } else {
       v.command.yaw = spec.yaw;
+    }
+  }
+  if (config.reality.wake) {
+    w.wakes.reserve(n);
+    w.fluctuation.reserve(static_cast<std::size_t>(n * n));
+    for (int j = 0; j < n; ++j) {
+      w.wakes.emplace_back(config.downwash, config.reality.wake_turbulence);
+      for (int i = 0; i < n; ++i) {
+        w.fluctuation.emplace_back(config.reality.wake_turbulence, config.seed, j, i);
+      }
     }
   }
   w.queue.reserve(static_cast<std::size_t>(256 * n * (n + 6)));
@@ -779,6 +1016,8 @@ void World::SetState(int vehicle, const Vec3& position, const Vec3& euler, const
   ang = body_rates;
   v.v_prev = velocity;
   v.accel.setZero();
+  if (w.config.sensor_reality.enabled)
+    v.attitude_estimate = RotationZyx(euler.x(), euler.y(), euler.z());
   mj_forward(w.m, w.d);
 }
 

@@ -12,6 +12,9 @@
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/model/vehicle_params.hpp"
 #include "fnmpc/sim/downwash.hpp"
+#include "fnmpc/sim/dryden.hpp"
+#include "fnmpc/sim/rotor_aero.hpp"
+#include "fnmpc/sim/wake.hpp"
 
 /// High-fidelity multi-vehicle simulator on MuJoCo (the only layer that includes MuJoCo;
 /// mujoco.h stays inside world.cpp). Frames: world ENU z up; body x forward, y left, z up;
@@ -43,6 +46,8 @@ struct VehicleSpec {
   /// When finite: the vehicle starts in direct-throttle mode with these throttles on all
   /// four rotors and the rotors already at their steady-state speed (e.g. start in hover).
   double initial_throttle = kNaN;
+  /// This vehicle's motor time constant [s]; NaN: WorldConfig::motor_time_constant.
+  double motor_time_constant = kNaN;
 };
 
 /// Battery: open-circuit voltage linear in the state of charge, series resistance.
@@ -58,14 +63,31 @@ struct BatterySettings {
   double initial_soc = 1.0;            ///< state of charge at t = 0, in (0, 1]
 };
 
+/// A discrete "1-cosine" gust (MIL-F-8785C sec. 3.7.2.4 shape, full cosine as in CS-25.341):
+/// v(t) = amplitude (1 - cos(2 pi (t - start) / duration)) / 2 for start <= t <= start +
+/// duration, zero otherwise.
+struct DiscreteGust {
+  double start = 0.0;             ///< [s]
+  double duration = 1.0;          ///< [s], > 0
+  Vec3 amplitude = Vec3::Zero();  ///< peak velocity, world frame [m/s]
+};
+
 /// Constant wind plus gusts: the gust is a first-order Gauss-Markov (Ornstein-Uhlenbeck)
-/// process per axis, uniform in space, with stationary standard deviation gust_std.
+/// process per axis, uniform in space, with stationary standard deviation gust_std; plus,
+/// when `turbulence` is set, Dryden turbulence (DrydenTurbulence, u along the horizontal
+/// mean wind, w up) and the discrete gusts. All uniform in space.
 struct WindSettings {
   bool enabled = false;
   Vec3 velocity = Vec3::Zero();     ///< constant wind, world frame [m/s]
   double gust_std = 0.0;            ///< [m/s], >= 0
   double gust_time_constant = 2.0;  ///< correlation time [s], > 0
+  bool turbulence = false;          ///< Dryden turbulence on
+  DrydenSettings dryden;            ///< its intensities, scale lengths and airspeed
+  std::vector<DiscreteGust> discrete_gusts;
 };
+
+/// Velocity [m/s] of the discrete gusts at time t [s] (sum over the gusts).
+Vec3 DiscreteGustVelocity(const std::vector<DiscreteGust>& gusts, double t);
 
 /// Command-timeout failsafe of the emulated autopilot, after the common autopilot behaviour
 /// on a lost offboard link (PX4 offboard mode: with no new setpoint for COM_OF_LOSS_T the
@@ -84,6 +106,50 @@ struct CommandTimeoutSettings {
   double velocity_gain = 2.0;     ///< vertical-speed loop gain [1/s]
   double land_speed = 0.1;        ///< land detector: |v_z| below this [m/s]
   double land_detect_time = 1.0;  ///< ... for this long -> motors off [s]
+};
+
+/// Aerodynamic reality models (issue #15, docs/simulator.md "Reality"); all off is the ideal
+/// plant of before (pinned by tests/sim/reality_off_test.cpp).
+struct AeroRealitySettings {
+  /// Each rotor's thrust in its actual axial inflow (AxialInflowThrustRatio, with the air of
+  /// the wind and the other vehicles' wakes), ground effect (GroundEffectRatio) and rotor
+  /// drag (RotorDrag) on top of the quadratic body drag.
+  bool rotor_aerodynamics = false;
+  RotorBlade blade;
+  /// Mass-normalised rotor drag coefficient d [1/s] at hover rotor speed: the mean of the
+  /// d_x = 0.544 and d_y = 0.386 identified by Faessler et al. 2018 (RA-L 3(2)).
+  double rotor_drag = 0.465;
+  /// The wakes (when downwash.enabled) advected from the upper vehicle's past states, with
+  /// turbulent fluctuations (WakeHistory, WakeFluctuation), instead of the steady jet.
+  bool wake = false;
+  WakeTurbulenceSettings wake_turbulence;
+};
+
+/// Sensor and autopilot reality models (issue #15, docs/simulator.md "Reality"); off is the
+/// ideal sensors of SensorsConfig. Draws come from their own seeded stream.
+struct SensorRealitySettings {
+  bool enabled = false;
+  /// IMU biases: initial standard deviation and random walk (per axis). Initial values: the
+  /// residual after a level/gyro calibration, well inside the uncalibrated offsets of a
+  /// MPU-6000-class IMU (InvenSense product specification rev. 3.4: +-20 deg/s, +-50 mg).
+  double accel_bias = 0.05;        ///< [m/s^2]
+  double gyro_bias = 0.005;        ///< [rad/s] (0.3 deg/s)
+  double accel_bias_walk = 0.002;  ///< [m/s^2 / sqrt(s)]
+  double gyro_bias_walk = 0.0003;  ///< [rad/s / sqrt(s)]
+  double latency_jitter = 0.003;   ///< extra delivery delay, uniform in [0, jitter] [s]
+  /// Bursty dropouts (Gilbert-Elliott two-state chain per vehicle and sensor): share of
+  /// samples lost in bursts and the mean burst length.
+  double burst_share = 0.01;          ///< [-]
+  double burst_length = 0.1;          ///< [s]
+  double mocap_outlier_rate = 0.002;  ///< share of mocap samples with an outlier (marker swap)
+  double mocap_outlier_size = 0.05;   ///< outlier position error [m]
+  /// Autopilot attitude loop on its own estimate: gyro (with its bias and noise) integrated at
+  /// the autopilot rate, corrected toward the external (mocap-like, noisy) attitude with this
+  /// time constant, as an autopilot fusing external vision.
+  bool autopilot_estimate = true;
+  double estimate_time_constant = 0.5;  ///< [s]
+
+  void Validate() const;
 };
 
 /// What the emulated autopilot is doing (World::GetAutopilotStatus).
@@ -115,6 +181,8 @@ struct WorldConfig {
   DownwashSettings downwash;
   WindSettings wind;
   CommandTimeoutSettings command_timeout;  ///< autopilot failsafe on a lost command stream
+  AeroRealitySettings reality;             ///< aerodynamic reality models (off: ideal plant)
+  SensorRealitySettings sensor_reality;    ///< sensor and autopilot reality (off: ideal)
   std::uint64_t seed = 1;                  ///< all noise, dropouts and gusts derive from it
 
   /// Throws std::invalid_argument with context on a bad value (also checks each
@@ -135,8 +203,11 @@ struct TrueState {
   double voltage = kNaN;                     ///< battery terminal voltage [V]
   double soc = kNaN;                         ///< battery state of charge [-]
   double current = kNaN;                     ///< battery current [A]
-  Vec3 aero_force = Vec3::Zero();            ///< wind + downwash force, world [N]
-  Vec3 aero_torque = Vec3::Zero();           ///< wind + downwash torque about the CoM, world [N m]
+  /// Aerodynamic force, world [N]: wind and wake drag, plus with the reality models the
+  /// rotors' thrust in their actual inflow and ground effect minus their still-air thrust at
+  /// the same speeds, and rotor drag.
+  Vec3 aero_force = Vec3::Zero();
+  Vec3 aero_torque = Vec3::Zero();  ///< wind + downwash torque about the CoM, world [N m]
 };
 
 /// Settings checks shared with the World constructor: throws std::invalid_argument naming

@@ -148,15 +148,16 @@ TEST(RealityOffTest, FixedCommandsGiveTheRecordedTrajectoryBitForBit) {
       const double vx = std::stod(x), vy = std::stod(y);
       const double dev = std::abs(vx - vy) / std::max(1.0, std::abs(vy));
       worst = std::max(worst, dev);
-      ASSERT_LE(dev, 1e-9) << "row " << i << " (step " << 50 * i << ") column " << col << ": "
-                           << x << " vs recorded " << y;
+      ASSERT_LE(dev, 1e-9) << "row " << i << " (step " << 50 * i << ") column " << col << ": " << x
+                           << " vs recorded " << y;
       ++col;
     }
     ASSERT_FALSE(std::getline(b, y, ',')) << "row " << i << ": more columns recorded";
   }
-  std::printf("reality off: %d of %zu rows bit-identical to the recording, worst relative "
-              "deviation %.3g\n",
-              identical, rows.size(), worst);
+  std::printf(
+      "reality off: %d of %zu rows bit-identical to the recording, worst relative "
+      "deviation %.3g\n",
+      identical, rows.size(), worst);
 }
 
 }  // namespace

@@ -1,0 +1,54 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include <cstdint>
+
+#include "fnmpc/model/vehicle_params.hpp"
+
+/// The true plant of a simulated vehicle (issue #15): the controller keeps its vehicle file,
+/// the simulator flies parameters drawn around it. Pure functions, no files (the scenario
+/// parser reads the spread, `fnmpc run` writes the drawn plant). See docs/simulator.md,
+/// "Reality", for each spread's justification.
+namespace fnmpc::model {
+
+/// Spread of the true plant around the nominal (identified) vehicle file. Relative spreads
+/// are standard deviations of a normal factor (1 + sd N(0, 1)), cut at +-3 sd so that a
+/// draw stays physical; the attitude biases are uniform in magnitude with a random sign.
+struct PlantSpread {
+  double mass = 0.02;                 ///< [-] battery and payload differences between flights
+  double inertia = 0.10;              ///< [-] per axis, bifilar-pendulum / CAD uncertainty
+  double thrust_constant = 0.05;      ///< [-] T_k, propeller-to-propeller and wear
+  double torque_constant = 0.05;      ///< [-] T_q
+  double motor_time_constant = 0.20;  ///< [-] ESC/motor lag
+  double thrust_scale = 0.03;         ///< [-] sd of the throttle->thrust scale error
+  /// [-] relative error of the voltage dependence of the throttle map: the plant's map is
+  /// the nominal one evaluated at V_ref + (1 + e) (V - V_ref).
+  double voltage_dependence = 0.10;
+  double voltage_reference = 15.0;  ///< V_ref [V], middle of the 4S range
+  double attitude_bias_min = 0.5 * 3.141592653589793 / 180.0;  ///< [rad] level calibration
+  double attitude_bias_max = 2.0 * 3.141592653589793 / 180.0;  ///< [rad]
+  double attitude_gains = 0.10;  ///< [-] autopilot K_p and K_d per axis
+
+  /// Throws std::invalid_argument naming the field on a negative or non-finite spread, a
+  /// relative spread >= 1/3 (a 3-sd draw would reach zero) or bias_min > bias_max.
+  void Validate() const;
+};
+
+/// One vehicle's true plant: its parameters (vehicle-file format, the calibration `bias`
+/// block holding the true attitude biases and thrust scale) and its motor time constant.
+struct TruePlant {
+  VehicleParams params;
+  double motor_time_constant = 0.02;  ///< [s]
+};
+
+/// Draws the true plant of vehicle `vehicle` for `seed` around `nominal` (deterministic in
+/// (seed, vehicle), independent of the other vehicles). The nominal's own calibration bias
+/// is not inherited: the plant's bias block is the drawn truth.
+TruePlant DrawTruePlant(const VehicleParams& nominal, double nominal_motor_time_constant,
+                        const PlantSpread& spread, std::uint64_t seed, int vehicle);
+
+/// The throttle map whose voltage dependence is scaled by (1 + error) about `v_ref`:
+/// P'(f, V) = P(f, v_ref + (1 + error) (V - v_ref)), re-expanded into coefficients.
+ThrottlePolynomial ScaleVoltageDependence(const ThrottlePolynomial& p, double error, double v_ref);
+
+}  // namespace fnmpc::model
