@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <random>
 
 #include "fnmpc/core/types.hpp"
