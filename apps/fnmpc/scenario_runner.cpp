@@ -69,7 +69,7 @@ struct VehicleLog {
   struct Sample {
     double t;
     bool steady;
-    std::array<double, 2> err;
+    std::array<double, formation::kMaxNeighbours> err;
     int active;
   };
   std::vector<Sample> samples;
@@ -309,8 +309,8 @@ void ApplyReality(const config::ScenarioConfig& sc, std::uint64_t seed, sim::Wor
 }
 
 double FormationError(const config::ScenarioConfig& sc, int i, const std::vector<Vec3>& positions,
-                      double yaw, std::array<double, 2>* per_neighbour,
-                      std::array<Vec3, 2>* relative) {
+                      double yaw, std::array<double, formation::kMaxNeighbours>* per_neighbour,
+                      std::array<Vec3, formation::kMaxNeighbours>* relative) {
   const auto& v = sc.vehicles.at(static_cast<std::size_t>(i));
   if (per_neighbour) per_neighbour->fill(kNaN);
   if (relative) relative->fill(Vec3::Constant(kNaN));
@@ -321,8 +321,8 @@ double FormationError(const config::ScenarioConfig& sc, int i, const std::vector
              positions.at(static_cast<std::size_t>(i));
     if (v.frame_control) r = RotationZ(yaw).transpose() * r;
     const double e = (r - v.neighbours[j].desired).norm();
-    if (j < 2 && per_neighbour) (*per_neighbour)[j] = e;
-    if (j < 2 && relative) (*relative)[j] = r;
+    if (per_neighbour) (*per_neighbour)[j] = e;
+    if (relative) (*relative)[j] = r;
     sum += e;
   }
   return sum / static_cast<double>(v.neighbours.size());
@@ -582,9 +582,12 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
           }
         }
         // Formation errors from the truth: (p_j - p_i) in the target frame minus d_j.
-        std::array<Vec3, 2> rel{Vec3::Constant(kNaN), Vec3::Constant(kNaN)};
-        std::array<Vec3, 2> est_rel{Vec3::Constant(kNaN), Vec3::Constant(kNaN)};
-        std::array<double, 2> err{kNaN, kNaN};
+        // Every neighbour's error; the CSV has columns for the first two.
+        std::array<Vec3, formation::kMaxNeighbours> rel, est_rel;
+        rel.fill(Vec3::Constant(kNaN));
+        est_rel.fill(Vec3::Constant(kNaN));
+        std::array<double, formation::kMaxNeighbours> err;
+        err.fill(kNaN);
         double ferr = kNaN;
         if (!v.leader) {
           ferr = FormationError(sc, i, positions, x.euler.z(), &err, &rel);

@@ -383,9 +383,10 @@ ScenarioConfig ParseScenario(YamlMap map) {
       v.relative_position_bound =
           Positive3(vm, "relative_position_bound", v.relative_position_bound);
       std::vector<YamlMap> nmaps = vm.MapList("neighbours");
-      if (nmaps.empty() || nmaps.size() > 2) {
-        throw vm.ErrorAt("neighbours",
-                         "a follower needs 1 or 2 neighbours, got " + std::to_string(nmaps.size()));
+      if (nmaps.empty() || nmaps.size() > static_cast<std::size_t>(formation::kMaxNeighbours)) {
+        throw vm.ErrorAt("neighbours", "a follower needs 1 to " +
+                                           std::to_string(formation::kMaxNeighbours) +
+                                           " neighbours, got " + std::to_string(nmaps.size()));
       }
       for (YamlMap& nm : nmaps) {
         ScenarioNeighbour n;

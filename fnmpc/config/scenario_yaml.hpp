@@ -8,6 +8,7 @@
 #include "fnmpc/config/yaml_reader.hpp"
 #include "fnmpc/core/sensors.hpp"
 #include "fnmpc/core/types.hpp"
+#include "fnmpc/formation/neighbour_limits.hpp"
 #include "fnmpc/formation/nmpc_weights.hpp"
 #include "fnmpc/formation/recovery.hpp"
 #include "fnmpc/model/true_plant.hpp"
@@ -33,7 +34,7 @@ struct ScenarioVehicle {
   double yaw = 0.0;           ///< initial yaw [rad]
   model::VehicleParams params;
   SensorsConfig sensors;
-  std::vector<ScenarioNeighbour> neighbours;    ///< followers: 1 or 2
+  std::vector<ScenarioNeighbour> neighbours;    ///< followers: 1 to formation::kMaxNeighbours
   bool frame_control = false;                   ///< desired offsets in {c} (true) or {m} (false)
   Vec3 relative_position_bound{6.0, 6.0, 2.0};  ///< soft bound on |dx_j| per axis [m]
   double takeoff_height = kNaN;  ///< per-vehicle take-off height [m]; NaN: phases.takeoff_height

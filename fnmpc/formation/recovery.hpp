@@ -44,8 +44,9 @@ struct SafetyConfig {
   double collision_radius = 0.45;
   RecoveryConfig recovery;
   /// Fault injection (scenario `faults.solver_failures`, docs/scenarios.md), off by default:
-  /// this fraction of NMPC steps is forced to fall back (solution discarded, last command
-  /// held), drawn by InjectedSolverFailure() from `injected_failure_seed` without state.
+  /// this fraction of NMPC steps is forced to fall back (no solve; the time-shifted plan's
+  /// first control is applied, as on a solver error), drawn by InjectedSolverFailure() from
+  /// `injected_failure_seed` without state.
   double injected_failure_rate = 0.0;
   std::uint64_t injected_failure_seed = 0;
 

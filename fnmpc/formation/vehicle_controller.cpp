@@ -43,12 +43,18 @@ void ControllerConfig::Validate() const {
   if (!(max_speed > 0.0)) fail("max_speed must be > 0");
   safety.Validate();
   if (!leader) {
-    if (neighbours.empty() || neighbours.size() > 2) {
-      fail("a follower needs 1 or 2 neighbours, got " + std::to_string(neighbours.size()));
+    if (neighbours.empty() || neighbours.size() > static_cast<std::size_t>(kMaxNeighbours)) {
+      fail("a follower needs 1 to " + std::to_string(kMaxNeighbours) + " neighbours, got " +
+           std::to_string(neighbours.size()));
     }
-    for (const auto& n : neighbours) {
+    for (std::size_t i = 0; i < neighbours.size(); ++i) {
+      const NeighbourTarget& n = neighbours[i];
       if (n.vehicle < 0 || n.vehicle == vehicle)
         fail("bad neighbour index " + std::to_string(n.vehicle));
+      for (std::size_t j = 0; j < i; ++j) {
+        if (neighbours[j].vehicle == n.vehicle)
+          fail("neighbour " + std::to_string(n.vehicle) + " is listed twice");
+      }
       if (!n.desired.allFinite()) fail("desired relative position must be finite");
     }
     if (!((relative_position_bound.array() > 0.0).all()))
@@ -67,8 +73,8 @@ void ControllerConfig::Validate() const {
 }
 
 // ---------------------------------------------------------------------------------------
-// NMPC cores. The solvers (leader, reduced follower with 1 and 2 neighbours) are
-// instantiated implicitly in this translation unit.
+// NMPC cores. The solvers (leader, reduced follower) are instantiated implicitly in this
+// translation unit.
 
 /// What a follower estimates of one neighbour (NeighbourStateIndex layout, split).
 struct NeighbourState {
@@ -87,14 +93,16 @@ struct NmpcInput {
   Vec3 position = Vec3::Zero();  // leader only, {n}
   Vec<6> own = Vec<6>::Zero();   // v (3), roll, pitch, yaw
   double height = kNaN;          // follower: current height of the CoM [m] (NaN: unknown)
-  std::array<NeighbourState, 2> neighbours{};
-  std::array<bool, 2> active{true, true};  // follower: neighbour j in the cost
-  Vec3 last_command = Vec3::Zero();        // (thrust, roll, pitch) last applied
+  std::array<NeighbourState, kMaxNeighbours> neighbours{};
+  std::array<bool, kMaxNeighbours> active{};  // follower: neighbour j in the cost
+  Vec3 last_command = Vec3::Zero();           // (thrust, roll, pitch) last applied
   // Collision avoidance: the nearest sensed vehicles, relative position (p_o - p_self) and
   // velocity; slots beyond `obstacles` are unused.
   std::array<Vec3, kObstacleSlots> obstacle_rel{}, obstacle_vel{};
   std::array<Vec3, kObstacleSlots> obstacle_normal{};  // unit, from self towards the obstacle
   int obstacles = 0;
+  // Fault injection: skip the solve and apply the time-shifted plan, as on a solver error.
+  bool forced_failure = false;
 };
 
 struct NmpcStep {
@@ -137,6 +145,18 @@ double Objective(const Solver& s, const Problem& problem, const typename Solver:
   problem.TerminalResidual(s.states()[s.horizon()], params[s.horizon()], &yn, nullptr);
   cost += 0.5 * (yn - yref_n).cwiseAbs2().dot(wn);
   return cost;
+}
+
+// What Algorithm 1 does on a solver error, without solving: the iterate stays the
+// time-shifted previous solution and its first control is applied.
+template <class Solver>
+void ForcedFallback(const Solver& s, NmpcStep* out) {
+  out->u = s.inputs()[0];
+  out->stats = s.stats();
+  out->stats.fallback = true;
+  out->stats.sqp_iterations = 0;
+  out->stats.qp_iterations = 0;
+  out->cpu_time = 0.0;
 }
 
 template <class Solver>
@@ -197,10 +217,14 @@ class LeaderCore final : public NmpcCore {
     References(in.t);
     Obstacles(in);
     x0_ = State(in);
-    const double cpu0 = ThreadCpuSeconds();
-    solver_.Step(x0_, &out.u);
-    out.cpu_time = ThreadCpuSeconds() - cpu0;
-    out.stats = solver_.stats();
+    if (in.forced_failure) {
+      ForcedFallback(solver_, &out);
+    } else {
+      const double cpu0 = ThreadCpuSeconds();
+      solver_.Step(x0_, &out.u);
+      out.cpu_time = ThreadCpuSeconds() - cpu0;
+      out.stats = solver_.stats();
+    }
     out.reference = yref_[0].head<3>();
     return out;
   }
@@ -270,14 +294,21 @@ class LeaderCore final : public NmpcCore {
   bool first_ = true;
 };
 
-template <int Nn>
+// Any number of formation neighbours with one set of residual rows: for a diagonal weight W
+// shared by the neighbours, sum_j |a_j - x|_W^2 = n |a_mean - x|_W^2 + sum_j |a_j - a_mean|_W^2,
+// with a_j = the neighbour's predicted relative position (rotated into {c} for frame c) minus
+// its desired offset, and x the own displacement (likewise for the velocities). The last sum
+// does not depend on the inputs (the yaw is not steered by them), so the reduced problem with
+// one neighbour, the mean of the active neighbours as its target and n times the weights has
+// the same Gauss-Newton QP in the inputs as one with a row block per neighbour
+// (tests/rti/neighbour_mean_test.cpp). Diagnose() adds the spread term back to the cost.
 class FollowerCore final : public NmpcCore {
  public:
-  using Reduced = ocp::ReducedFollowerProblem<Nn>;
+  using Reduced = ocp::ReducedFollowerProblem<1>;
   using Base = ocp::WithObstacles<Reduced, kObstacleSlots>;
   using Problem = ocp::WithInputRate<Base>;
   using Solver = rti::RtiSolver<Problem>;
-  using X = typename Solver::X;
+  using X = Solver::X;
   static constexpr int kNyR = Reduced::kNy, kNyNR = Reduced::kNyN;
   explicit FollowerCore(const ControllerConfig& c)
       : c_(c),
@@ -287,32 +318,29 @@ class FollowerCore final : public NmpcCore {
                 rti::StateBoundLayout{{0, 1, 2, 3, 4, 5}, {true, true, true, true, true, true}}) {
     const NmpcWeights& wt = c.weights;
     w_.setZero();
-    for (int j = 0; j < Nn; ++j) {
-      w_.template segment<3>(3 * j) = wt.position;
-      w_.template segment<3>(3 * Nn + 3 * j) = wt.velocity;
-    }
-    w_.template segment<5>(kNyR - 5) << wt.attitude, wt.attitude, wt.thrust, wt.attitude_ref,
+    w_.segment<3>(0) = wt.position;
+    w_.segment<3>(3) = wt.velocity;
+    w_.segment<5>(kNyR - 5) << wt.attitude, wt.attitude, wt.thrust, wt.attitude_ref,
         wt.attitude_ref;
-    w_.template segment<kObstacleSlots>(kNyR).setConstant(wt.collision);
-    w_.template tail<3>() << wt.thrust_rate, wt.attitude_ref_rate, wt.attitude_ref_rate;
+    w_.segment<kObstacleSlots>(kNyR).setConstant(wt.collision);
+    w_.tail<3>() << wt.thrust_rate, wt.attitude_ref_rate, wt.attitude_ref_rate;
     TerminalWeights(w_, &wn_);
     solver_.SetWeights(w_, wn_);
-    w_active_ = w_;
-    wn_active_ = wn_;
     InputBounds(c, &solver_);
-    typename Solver::Y y = Solver::Y::Zero();
-    for (int j = 0; j < Nn; ++j) y.template segment<3>(3 * j) = c.neighbours[j].desired;
-    yref_.assign(solver_.horizon(), y);
-    for (int k = 0; k < solver_.horizon(); ++k) solver_.SetReference(k, y);
+    nn_ = static_cast<int>(c.neighbours.size());
+    for (int j = 0; j < nn_; ++j) desired_[j] = c.neighbours[j].desired;
+    yref_.assign(solver_.horizon(), Solver::Y::Zero());
     yref_n_.setZero();
-    yref_n_.template head<kNyNR>() = y.template head<kNyNR>();
-    solver_.SetTerminalReference(yref_n_);
     params_.assign(solver_.horizon() + 1, Solver::P::Zero());
+    active_.fill(false);
+    for (int j = 0; j < nn_; ++j) active_[j] = true;
+    Aggregate();
   }
 
   void Engage(const Vec3& /*anchor*/, double yaw_ref) override { yaw_ref_ = yaw_ref; }
 
   void Start(const NmpcInput& in, const Vec3& u_guess) override {
+    ActiveNeighbours(in);
     solver_.InitializeGuess(Stage(in), u_guess);
     first_ = true;
   }
@@ -322,76 +350,106 @@ class FollowerCore final : public NmpcCore {
     if (!first_) {
       solver_.Shift();
       X shift = X::Zero();
-      shift.template head<3>() = -solver_.states()[0].template head<3>();
+      shift.head<3>() = -solver_.states()[0].head<3>();
       solver_.OffsetGuess(shift);  // the displacement restarts at zero every step
     }
     first_ = false;
     ActiveNeighbours(in);
     x0_ = Stage(in);
-    const double cpu0 = ThreadCpuSeconds();
-    solver_.Step(x0_, &out.u);
-    out.cpu_time = ThreadCpuSeconds() - cpu0;
-    out.stats = solver_.stats();
+    if (in.forced_failure) {
+      ForcedFallback(solver_, &out);
+    } else {
+      const double cpu0 = ThreadCpuSeconds();
+      solver_.Step(x0_, &out.u);
+      out.cpu_time = ThreadCpuSeconds() - cpu0;
+      out.stats = solver_.stats();
+    }
     return out;
   }
 
   void Diagnose(double* kkt, double* cost) override {
     *kkt = solver_.ComputeKkt(x0_);
-    *cost = Objective(solver_, solver_.problem(), w_active_, wn_active_, yref_, yref_n_, params_);
+    *cost = Objective(solver_, solver_.problem(), w_active_, wn_active_, yref_, yref_n_, params_) +
+            SpreadCost();
   }
 
   void Predicted(const Vec3& origin, std::vector<Vec3>* out) const override {
-    for (const auto& x : solver_.states()) out->push_back(origin + x.template head<3>());
+    for (const auto& x : solver_.states()) out->push_back(origin + x.head<3>());
   }
 
  private:
   // Terminal: the reduced follower's rows times terminal_factor, the obstacle rows as is.
-  void TerminalWeights(const typename Solver::Y& w, typename Solver::YN* wn) const {
-    wn->template head<kNyNR>() = c_.weights.terminal_factor * w.template head<kNyNR>();
-    wn->template tail<kObstacleSlots>() = w.template segment<kObstacleSlots>(kNyR);
+  void TerminalWeights(const Solver::Y& w, Solver::YN* wn) const {
+    wn->head<kNyNR>() = c_.weights.terminal_factor * w.head<kNyNR>();
+    wn->tail<kObstacleSlots>() = w.segment<kObstacleSlots>(kNyR);
   }
 
-  // A lost neighbour's rows get zero weight (the cost pattern is kept: no allocation) and
-  // its prediction no longer bounds the displacement.
-  void ActiveNeighbours(const NmpcInput& in) {
-    bool changed = false;
-    for (int j = 0; j < Nn; ++j) changed = changed || in.active[j] != active_[j];
-    if (!changed) return;
-    w_active_ = w_;
-    for (int j = 0; j < Nn; ++j) {
-      active_[j] = in.active[j];
-      if (active_[j]) continue;
-      w_active_.template segment<3>(3 * j).setZero();
-      w_active_.template segment<3>(3 * Nn + 3 * j).setZero();
+  // The active neighbours' mean desired offset as the reference, n times the weights (a lost
+  // neighbour leaves the mean; with none the rows get weight zero, the pattern is kept: no
+  // allocation).
+  void Aggregate() {
+    int n = 0;
+    Vec3 d = Vec3::Zero();
+    for (int j = 0; j < nn_; ++j) {
+      if (!active_[j]) continue;
+      ++n;
+      d += desired_[j];
     }
+    active_count_ = n;
+    if (n > 0) d /= n;
+    w_active_ = w_;
+    w_active_.head<6>() *= static_cast<double>(n);
     TerminalWeights(w_active_, &wn_active_);
     solver_.SetWeightValues(w_active_, wn_active_);
+    for (int k = 0; k < solver_.horizon(); ++k) {
+      yref_[k].head<3>() = d;
+      solver_.SetReference(k, yref_[k]);
+    }
+    yref_n_.head<3>() = d;
+    solver_.SetTerminalReference(yref_n_);
   }
 
-  // Stage parameters from the neighbours' constant-velocity predictions, relative-position
-  // bounds mapped onto the displacement s: -b <= c_j - s <= b (cf. SetReducedFollowerStage),
-  // the altitude bounds onto s_z from the current height, the obstacles' predictions.
+  void ActiveNeighbours(const NmpcInput& in) {
+    bool changed = false;
+    for (int j = 0; j < nn_; ++j) {
+      changed = changed || in.active[j] != active_[j];
+      active_[j] = in.active[j];
+    }
+    if (changed) Aggregate();
+  }
+
+  // Stage parameters from the neighbours' constant-velocity predictions (their mean over the
+  // active ones), relative-position bounds mapped onto the displacement s:
+  // -b <= c_j - s <= b for every active j (cf. SetReducedFollowerStage), the altitude bounds
+  // onto s_z from the current height, the obstacles' predictions.
   X Stage(const NmpcInput& in) {
     const double ts = c_.rti.sample_time;
     X lb = X::Constant(-kInf), ub = X::Constant(kInf);
-    lb.template segment<3>(3).setConstant(-c_.max_speed);
-    ub.template segment<3>(3).setConstant(c_.max_speed);
+    lb.segment<3>(3).setConstant(-c_.max_speed);
+    ub.segment<3>(3).setConstant(c_.max_speed);
     const Vec3& b = c_.relative_position_bound;
     const bool height_known = std::isfinite(in.height);
+    Vec3 rel_mean = Vec3::Zero(), vel_mean = Vec3::Zero();
+    for (int j = 0; j < nn_; ++j) {
+      rel_[j] = in.neighbours[j].rel_pos;
+      vel_[j] = in.neighbours[j].vel;
+      if (!active_[j]) continue;
+      rel_mean += rel_[j];
+      vel_mean += vel_[j];
+    }
+    if (active_count_ > 0) {
+      rel_mean /= active_count_;
+      vel_mean /= active_count_;
+    }  // else: zero, finite and unweighted (keeps the linearisation finite)
     for (int k = 0; k <= solver_.horizon(); ++k) {
-      typename Solver::P& p = params_[k];
+      Solver::P& p = params_[k];
       p[0] = yaw_ref_;
+      p.segment<3>(Reduced::ParamRelPos(0)) = rel_mean + (k * ts) * vel_mean;
+      p.segment<3>(Reduced::ParamVel(0)) = vel_mean;
       Vec3 lo = Vec3::Constant(-kInf), hi = Vec3::Constant(kInf);
-      for (int j = 0; j < Nn; ++j) {
-        const auto& nb = in.neighbours[j];
-        if (!in.active[j]) {
-          // Finite, unweighted: keeps the linearisation finite.
-          p.template segment<6>(Reduced::ParamRelPos(j)).setZero();
-          continue;
-        }
-        const Vec3 cj = nb.rel_pos + (k * ts) * nb.vel;
-        p.template segment<3>(Reduced::ParamRelPos(j)) = cj;
-        p.template segment<3>(Reduced::ParamVel(j)) = nb.vel;
+      for (int j = 0; j < nn_; ++j) {
+        if (!active_[j]) continue;
+        const Vec3 cj = rel_[j] + (k * ts) * vel_[j];
         lo = lo.cwiseMax(cj - b);
         hi = hi.cwiseMin(cj + b);
       }
@@ -400,9 +458,8 @@ class FollowerCore final : public NmpcCore {
           Base::SetUnused(o, &p);
           continue;
         }
-        p.template segment<3>(Base::ParamObstacle(o)) =
-            in.obstacle_rel[o] + (k * ts) * in.obstacle_vel[o];
-        p.template segment<3>(Base::ParamNormal(o)) = in.obstacle_normal[o];
+        p.segment<3>(Base::ParamObstacle(o)) = in.obstacle_rel[o] + (k * ts) * in.obstacle_vel[o];
+        p.segment<3>(Base::ParamNormal(o)) = in.obstacle_normal[o];
       }
       if (height_known) {
         lo.z() = std::max(lo.z(), c_.safety.min_altitude - in.height);
@@ -410,8 +467,8 @@ class FollowerCore final : public NmpcCore {
       }
       solver_.SetParameters(k, p);
       if (k >= 1) {
-        lb.template head<3>() = lo;
-        ub.template head<3>() = hi;
+        lb.head<3>() = lo;
+        ub.head<3>() = hi;
         solver_.SetStateBounds(k, lb, ub);
       }
     }
@@ -420,15 +477,49 @@ class FollowerCore final : public NmpcCore {
     return x0;
   }
 
+  // sum over stages of 0.5 sum_j |a_j - a_mean|_W^2 (position and velocity rows; see the class
+  // comment): the per-neighbour cost minus the aggregated one, at the current iterate's yaw.
+  double SpreadCost() const {
+    if (active_count_ < 2) return 0.0;
+    const double ts = c_.rti.sample_time;
+    const Vec3 wp = c_.weights.position, wv = c_.weights.velocity;
+    double sum = 0.0;
+    for (int k = 0; k <= solver_.horizon(); ++k) {
+      const double psi = solver_.states()[k][model::QuadrotorModel::kPsi];
+      std::array<Vec3, kMaxNeighbours> a{};
+      Vec3 a_mean = Vec3::Zero(), v_mean = Vec3::Zero();
+      for (int j = 0; j < nn_; ++j) {
+        if (!active_[j]) continue;
+        Vec3 r;
+        ocp::RelativeRows::Write(c_.frame, Vec3(rel_[j] + (k * ts) * vel_[j]), psi, 1.0, 0, 0, 0,
+                                 &r, static_cast<Mat<3, 9>*>(nullptr));
+        a[j] = r - desired_[j];
+        a_mean += a[j];
+        v_mean += vel_[j];
+      }
+      a_mean /= active_count_;
+      v_mean /= active_count_;
+      double stage = 0.0;
+      for (int j = 0; j < nn_; ++j) {
+        if (!active_[j]) continue;
+        stage += (a[j] - a_mean).cwiseAbs2().dot(wp) + (vel_[j] - v_mean).cwiseAbs2().dot(wv);
+      }
+      sum += 0.5 * (k < solver_.horizon() ? 1.0 : c_.weights.terminal_factor) * stage;
+    }
+    return sum;
+  }
+
   ControllerConfig c_;
   double yaw_ref_ = 0.0;
   Solver solver_;
-  typename Solver::Y w_, w_active_;
-  typename Solver::YN wn_, wn_active_;
-  std::array<bool, 2> active_{true, true};
-  std::vector<typename Solver::Y> yref_;
-  typename Solver::YN yref_n_;
-  std::vector<typename Solver::P> params_;
+  Solver::Y w_, w_active_;
+  Solver::YN wn_, wn_active_;
+  int nn_ = 0, active_count_ = 0;
+  std::array<bool, kMaxNeighbours> active_{};
+  std::array<Vec3, kMaxNeighbours> desired_{}, rel_{}, vel_{};
+  std::vector<Solver::Y> yref_;
+  Solver::YN yref_n_;
+  std::vector<Solver::P> params_;
   X x0_ = X::Zero();
   bool first_ = true;
 };
@@ -449,6 +540,12 @@ constexpr double kMaxMocapGap = 0.5;
 /// First-order filter of the motion-capture height's rate [s] (1 mm noise at 60 Hz: about
 /// 0.03 m/s left).
 constexpr double kMocapRateFilterTime = 0.1;
+/// Motion-capture outliers: a sample farther than this from the raw track's prediction
+/// (last sample plus rate times the interval) is skipped [m], unless it is the
+/// kMocapGateRun-th in a row, which restarts the track. The prediction's error is a few mm
+/// (1 mm noise, the 0.1 s rate filter's lag at 5 m/s^2 is 8 mm per 60 Hz interval).
+constexpr double kMocapGate = 0.1;
+constexpr int kMocapGateRun = 5;
 /// Consistency check: EKF velocity against the motion-capture rate [m/s], for [s].
 constexpr double kVelocityMismatch = 1.0;
 constexpr double kVelocityMismatchTime = 0.3;
@@ -502,10 +599,8 @@ VehicleController::VehicleController(const ControllerConfig& config)
   // The solver is built here, not at the take-off -> NMPC switch: no allocation in flight.
   if (config_.leader) {
     nmpc_ = std::make_unique<LeaderCore>(config_);
-  } else if (nn == 1) {
-    nmpc_ = std::make_unique<FollowerCore<1>>(config_);
   } else {
-    nmpc_ = std::make_unique<FollowerCore<2>>(config_);
+    nmpc_ = std::make_unique<FollowerCore>(config_);
   }
 }
 
@@ -647,7 +742,15 @@ void VehicleController::TrackMocapPose(const Measurement& m) {
   if (!m.position.allFinite() || !std::isfinite(m.stamp)) return;
   const double dt = std::isfinite(raw_z_stamp_) ? m.stamp - raw_z_stamp_ : kInf;
   if (!(dt > 0.0)) return;  // out of order or repeated: keep the newer sample
-  if (dt <= kMaxMocapGap) {
+  if (dt <= kMaxMocapGap && raw_v_.allFinite() &&
+      (m.position - (raw_p_ + dt * raw_v_)).cwiseAbs().maxCoeff() > kMocapGate &&
+      raw_rejected_in_row_ < kMocapGateRun) {
+    ++raw_rejected_in_row_;  // an outlier: the raw height and rate skip it
+    return;
+  }
+  const bool restart = raw_rejected_in_row_ >= kMocapGateRun;  // the track itself jumped
+  raw_rejected_in_row_ = 0;
+  if (dt <= kMaxMocapGap && !restart) {
     const double a = 1.0 - std::exp(-dt / kMocapRateFilterTime);
     const Vec3 rate = (m.position - raw_p_) / dt;
     raw_v_ = raw_v_.allFinite() ? Vec3(raw_v_ + a * (rate - raw_v_)) : rate;
@@ -950,7 +1053,7 @@ ControlOutput VehicleController::Step(double t) {
       in.position = own.position;
       in.own << own.velocity, own.euler;
       in.height = z;
-      for (std::size_t j = 0; j < estimates_.neighbours.size() && j < 2; ++j) {
+      for (std::size_t j = 0; j < estimates_.neighbours.size(); ++j) {
         const auto& x = estimates_.neighbours[j];
         in.active[j] = presence_[j].active && x.allFinite();
         in.neighbours[j] = {x.segment<3>(0), x.segment<3>(3), x[6], x[7]};
@@ -958,6 +1061,9 @@ ControlOutput VehicleController::Step(double t) {
       in.last_command = last_command_.allFinite() ? last_command_
                                                   : Vec3(config_.params.mass * kGravity, 0.0, 0.0);
       NearestObstacles(t, &in);
+      // Fault injection (SafetyConfig::injected_failure_rate, 0 = off).
+      in.forced_failure =
+          InjectedSolverFailure(config_.safety, config_.vehicle, t, config_.rti.sample_time);
       if (reinit_pending_) {
         const Vec3 guess = last_command_.allFinite()
                                ? last_command_
@@ -978,26 +1084,21 @@ ControlOutput VehicleController::Step(double t) {
       out.fallback = s.stats.fallback;
       out.status = s.stats.status;
       out.reference = s.reference;
-      // Fault injection (SafetyConfig::injected_failure_rate, 0 = off): a forced fallback
-      // discards the step's solution and holds the last command.
-      const bool injected =
-          InjectedSolverFailure(config_.safety, config_.vehicle, t, config_.rti.sample_time);
-      if (injected) out.fallback = true;
       if (out.fallback) ++fallbacks_;
       thrust = s.u[0];
       roll = s.u[1];
       pitch = s.u[2];
-      if (injected && last_command_.allFinite()) {
-        thrust = last_command_[0];
-        roll = last_command_[1];
-        pitch = last_command_[2];
-      }
       Blend(t, &thrust, &roll, &pitch);
       d = ladder_.Update(t, true, out.fallback);
     } else {
-      // No estimate to run on: level attitude with the last thrust until the ladder's
-      // timeout hands over to the failsafe controller.
-      thrust = last_command_[0];
+      // No estimate to run on: level attitude at hover thrust, damped by the raw
+      // motion-capture vertical speed while it is fresh and consistent, until the estimate
+      // returns or the ladder's timeout hands over to the failsafe controller. (The last
+      // NMPC thrust may belong to a climb or a descent: held, it drops or lifts the vehicle.)
+      const double hover = config_.params.mass * kGravity;
+      const bool raw = RawMocapFresh(t) && std::isfinite(raw_v_.z()) && !VelocityInconsistent(t);
+      thrust = raw ? hover - config_.params.mass * config_.pid.kd_z * raw_v_.z() : hover;
+      thrust = std::clamp(thrust, 0.0, config_.pid.max_thrust);
       roll = pitch = 0.0;
       d = ladder_.Update(t, false, false);
     }

@@ -11,6 +11,7 @@
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/estimation/neighbour_ekf.hpp"
 #include "fnmpc/estimation/vehicle_ekf.hpp"
+#include "fnmpc/formation/neighbour_limits.hpp"
 #include "fnmpc/formation/nmpc_weights.hpp"
 #include "fnmpc/formation/recovery.hpp"
 #include "fnmpc/formation/takeoff_pid.hpp"
@@ -60,7 +61,7 @@ struct ControllerConfig {
   /// formation neighbours are avoided.
   std::vector<int> sensed_vehicles;
   // Follower only.
-  std::vector<NeighbourTarget> neighbours;               ///< 1 or 2 neighbours
+  std::vector<NeighbourTarget> neighbours;               ///< 1 to kMaxNeighbours, distinct
   ocp::TargetFrame frame = ocp::TargetFrame::kInertial;  ///< frame of `desired`
   Vec3 relative_position_bound{6.0, 6.0, 2.0};           ///< soft |dx_j,i| bounds [m]
   // Leader only: reference offsets from the hover point, from trajectory_start [s].
@@ -231,6 +232,7 @@ class VehicleController {
   // disagreement between that rate and the EKF's velocity [s].
   double raw_z_ = kNaN, raw_z_stamp_ = kNaN, raw_yaw_ = kNaN;
   Vec3 raw_p_ = Vec3::Constant(kNaN), raw_v_ = Vec3::Constant(kNaN);
+  int raw_rejected_in_row_ = 0;  // motion-capture samples off the raw track (outliers)
   double velocity_mismatch_since_ = kNaN;
   RecoveryReason failsafe_reason_ = RecoveryReason::kNone;
   bool nmpc_started_ = false;

@@ -148,6 +148,51 @@ TEST(SafetyTest, CommandedFailsafeLandsFromAnyHeight) {
   EXPECT_NEAR(plant.x[2], kGround, 0.02);
 }
 
+TEST(SafetyTest, FailsafeHoldIgnoresMotionCaptureOutliers) {
+  // Given a leader hovering under the NMPC with motion capture at 60 Hz
+  ControllerConfig cfg = BaseConfig(true);
+  VehicleController c(cfg);
+  Plant plant;
+  double t = 0.0;
+  double next_mocap = 0.0;
+  int sample = 0;
+  auto feed_mocap = [&](double until, bool outliers) {
+    for (; next_mocap <= until; next_mocap += 1.0 / 60.0, ++sample) {
+      Measurement m;
+      m.kind = SensorKind::kMocapPose;
+      m.vehicle = cfg.vehicle;
+      m.stamp = m.arrival = next_mocap;
+      m.position = plant.x.head<3>();
+      m.euler = plant.x.tail<3>();
+      // every fifth sample 0.8 m off (the fault campaign's outlier sizes reach 1 m)
+      if (outliers && sample % 5 == 0) m.position.z() += 0.8;
+      c.Process(m);
+    }
+  };
+  for (; t <= 6.0; t += kTs) {
+    feed_mocap(t, false);
+    plant.Step(c.ControlWithEstimates(t, plant.Estimate(t), {}));
+  }
+  ASSERT_EQ(c.phase(), FlightPhase::kNmpc);
+  // When the failsafe holds the altitude from the raw motion-capture height and rate while
+  // the motion capture delivers outliers
+  c.TriggerFailsafe(t);
+  const double z0 = plant.x[2];
+  const double hover = cfg.params.mass * kGravity;
+  double thrust_dev = 0.0, z_dev = 0.0;
+  for (double s = 0.0; s < cfg.safety.recovery.failsafe_hold_time; s += kTs, t += kTs) {
+    feed_mocap(t, true);
+    const ControlOutput o = c.ControlWithEstimates(t, plant.Estimate(t), {});
+    thrust_dev = std::max(thrust_dev, std::abs(o.thrust - hover));
+    plant.Step(o);
+    z_dev = std::max(z_dev, std::abs(plant.x[2] - z0));
+  }
+  // Then the thrust stays near hover (a 0.8 m jump would ask kp_z * 0.8 * m = 4.4 N, and the
+  // raw rate's jump far more) and the height holds
+  EXPECT_LT(thrust_dev, 1.0);
+  EXPECT_LT(z_dev, 0.05);
+}
+
 /// A follower with two neighbours hovering still; neighbour 1 disappears at t_loss and
 /// comes back at t_back. Returns the outputs.
 std::vector<ControlOutput> FlyFollowerWithLoss(VehicleController* c, Plant* plant, double t_loss,

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 #include <vector>
 
 #include "fnmpc/formation/throttle_map.hpp"
@@ -101,8 +102,10 @@ TEST(VehicleControllerTest, NaNEstimateNeverBecomesACommand) {
       EXPECT_LE(x.thrust, 25.0);
       EXPECT_LE(std::abs(x.roll), 0.35);
     }
-    // the NMPC does not run on an unusable estimate: level attitude, the last thrust
+    // the NMPC does not run on an unusable estimate: level attitude, hover thrust (no
+    // motion capture to damp with here)
     EXPECT_FALSE(o.nmpc);
+    EXPECT_DOUBLE_EQ(o.thrust, 1.37 * 9.81);
     EXPECT_EQ(o.roll, 0.0);
     EXPECT_EQ(o.pitch, 0.0);
     EXPECT_EQ(o.phase, FlightPhase::kNmpc);  // shorter than the ladder's estimate_timeout
@@ -141,9 +144,55 @@ TEST(VehicleControllerTest, FollowerReachesFormationFromRelativeEstimates) {
   EXPECT_EQ(c.fallbacks(), 0);
 }
 
+TEST(VehicleControllerTest, FollowerWithEightNeighboursReachesTheirMeanTarget) {
+  // Given a follower with eight neighbours hovering still, whose desired offsets are not
+  // consistent with one point (each off by up to 0.3 m)
+  ControllerConfig cfg = BaseConfig(false);
+  const Vec3 p_goal(0.4, 0.3, 1.2);  // where the offsets' mean places the follower
+  std::vector<Vec3> p_n;
+  cfg.neighbours.clear();
+  Vec3 mean_error = Vec3::Zero();
+  for (int j = 0; j < kMaxNeighbours; ++j) {
+    const double a = 2.0 * std::numbers::pi * j / kMaxNeighbours;
+    p_n.push_back(p_goal + Vec3(2.0 * std::cos(a), 2.0 * std::sin(a), 0.3 * (j % 2)));
+    const Vec3 error(0.3 * std::sin(3.0 * a), 0.3 * std::cos(5.0 * a), 0.1 * std::sin(a));
+    mean_error += error / kMaxNeighbours;
+    cfg.neighbours.push_back({j + 2, Vec3(p_n.back() - p_goal + error)});
+  }
+  VehicleController c(cfg);
+  Plant plant;
+  std::vector<estimation::NeighbourStateVec> nb(kMaxNeighbours);
+  // When it flies by relative estimates only
+  for (int k = 0; k * kTs <= 14.0; ++k) {
+    estimation::VehicleEstimate e = plant.Estimate(k * kTs);
+    for (int j = 0; j < kMaxNeighbours; ++j) {
+      nb[j].setZero();
+      nb[j].head<3>() = p_n[j] - plant.x.head<3>();
+    }
+    if (c.phase() != FlightPhase::kTakeoff && c.phase() != FlightPhase::kIdle) {
+      e.position.setConstant(kNaN);
+    } else {
+      e.position.z() -= kGround;
+    }
+    plant.Step(c.ControlWithEstimates(k * kTs, e, nb));
+  }
+  // Then it settles where the per-neighbour least-squares cost is least: the goal moved by
+  // minus the offsets' mean error, within 2 cm, without fallback
+  ASSERT_EQ(c.phase(), FlightPhase::kNmpc);
+  EXPECT_LT((plant.x.head<3>() - (p_goal - mean_error)).norm(), 0.02);
+  EXPECT_EQ(c.fallbacks(), 0);
+}
+
 TEST(VehicleControllerTest, InvalidConfigIsRejected) {
   ControllerConfig c = BaseConfig(false);
   c.neighbours.clear();
+  EXPECT_THROW(VehicleController{c}, std::invalid_argument);
+  c = BaseConfig(false);
+  c.neighbours.push_back(c.neighbours.front());  // listed twice
+  EXPECT_THROW(VehicleController{c}, std::invalid_argument);
+  c = BaseConfig(false);
+  c.neighbours.assign(kMaxNeighbours + 1, {0, Vec3::Zero()});
+  for (int j = 0; j <= kMaxNeighbours; ++j) c.neighbours[j].vehicle = j + 2;
   EXPECT_THROW(VehicleController{c}, std::invalid_argument);
   c = BaseConfig(true);
   c.takeoff_height = 0.05;
