@@ -147,16 +147,24 @@ double Objective(const Solver& s, const Problem& problem, const typename Solver:
   return cost;
 }
 
-// What Algorithm 1 does on a solver error, without solving: the iterate stays the
-// time-shifted previous solution and its first control is applied.
+// One RTI step from x0 into *out; a forced failure (fault injection) does what Algorithm 1
+// does on a solver error, without solving: the iterate stays the time-shifted previous
+// solution and its first control is applied.
 template <class Solver>
-void ForcedFallback(const Solver& s, NmpcStep* out) {
-  out->u = s.inputs()[0];
-  out->stats = s.stats();
-  out->stats.fallback = true;
-  out->stats.sqp_iterations = 0;
-  out->stats.qp_iterations = 0;
-  out->cpu_time = 0.0;
+void SolveStep(Solver* s, const typename Solver::X& x0, bool forced_failure, NmpcStep* out) {
+  if (forced_failure) {
+    out->u = s->inputs()[0];
+    out->stats = s->stats();
+    out->stats.fallback = true;
+    out->stats.sqp_iterations = 0;
+    out->stats.qp_iterations = 0;
+    out->cpu_time = 0.0;
+    return;
+  }
+  const double cpu0 = ThreadCpuSeconds();
+  s->Step(x0, &out->u);
+  out->cpu_time = ThreadCpuSeconds() - cpu0;
+  out->stats = s->stats();
 }
 
 template <class Solver>
@@ -217,14 +225,7 @@ class LeaderCore final : public NmpcCore {
     References(in.t);
     Obstacles(in);
     x0_ = State(in);
-    if (in.forced_failure) {
-      ForcedFallback(solver_, &out);
-    } else {
-      const double cpu0 = ThreadCpuSeconds();
-      solver_.Step(x0_, &out.u);
-      out.cpu_time = ThreadCpuSeconds() - cpu0;
-      out.stats = solver_.stats();
-    }
+    SolveStep(&solver_, x0_, in.forced_failure, &out);
     out.reference = yref_[0].head<3>();
     return out;
   }
@@ -356,14 +357,7 @@ class FollowerCore final : public NmpcCore {
     first_ = false;
     ActiveNeighbours(in);
     x0_ = Stage(in);
-    if (in.forced_failure) {
-      ForcedFallback(solver_, &out);
-    } else {
-      const double cpu0 = ThreadCpuSeconds();
-      solver_.Step(x0_, &out.u);
-      out.cpu_time = ThreadCpuSeconds() - cpu0;
-      out.stats = solver_.stats();
-    }
+    SolveStep(&solver_, x0_, in.forced_failure, &out);
     return out;
   }
 
