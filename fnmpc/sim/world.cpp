@@ -242,12 +242,21 @@ void WorldConfig::Validate() const {
   }
 }
 
+/// Contact buffer per vehicle: 4 feet and the hub on the ground, plus room for as many
+/// vehicle-vehicle contacts (MuJoCo's nconmax).
+constexpr std::size_t kContactsPerVehicle = 10;
+
 std::string World::BuildMjcf(const WorldConfig& c) {
   std::ostringstream x;
   x << "<mujoco model=\"fnmpc_world\">\n"
     << "  <compiler autolimits=\"true\" angle=\"radian\"/>\n"
     << "  <option timestep=\"" << Num(c.physics_dt) << "\" gravity=\"0 0 " << Num(-c.gravity)
     << "\" integrator=\"Euler\"/>\n"
+    // MuJoCo 2.2's default contact buffer (100) holds 25 vehicles on their four feet: the rest
+    // fell through the ground. Room for feet and hub of every vehicle, vehicle-vehicle
+    // contacts besides; pyramidal friction cones use 4 constraint rows per contact (condim 3).
+    << "  <size nconmax=\"" << kContactsPerVehicle * (c.vehicles.size() + 4) << "\" njmax=\""
+    << 4 * kContactsPerVehicle * (c.vehicles.size() + 4) << "\"/>\n"
     << "  <default><geom friction=\"1 0.005 0.0001\" rgba=\"0.6 0.6 0.6 1\"/></default>\n"
     << "  <worldbody>\n";
   if (c.ground) {

@@ -104,6 +104,19 @@ TEST(WorldTest, LandedVehicleStaysLandedAtZeroThrottle) {
   EXPECT_LT(s.velocity.norm(), 1e-3);
 }
 
+TEST(WorldTest, ManyLandedVehiclesAllRestOnTheGround) {
+  // Given 40 vehicles on the ground (MuJoCo's default contact buffer holds 25 on their feet)
+  WorldConfig c = QuietConfig(40);
+  World world(c);
+  for (int i = 0; i < 40; ++i) world.SetCommand(i, AttitudeCommand{0.0, 0.0, 0.0, 0.0});
+  // When 2 s pass at zero throttle
+  world.Step(2.0);
+  // Then every one of them still rests on its feet
+  for (int i = 0; i < 40; ++i) {
+    EXPECT_NEAR(world.GetTrueState(i).position.z(), World::kRestHeight, 3e-3) << "vehicle " << i;
+  }
+}
+
 TEST(WorldTest, TakesOffAndLands) {
   // Given a landed vehicle under the autopilot,
   WorldConfig c = QuietConfig(1);
