@@ -213,4 +213,37 @@ void YamlMap::Finish() const {
   }
 }
 
+ErrorPlace ParseErrorPlace(const std::string& message) {
+  ErrorPlace e;
+  // Digits at i, then `end`; returns the position after them (npos if none).
+  auto number = [&](std::size_t i, char end, int* value) -> std::size_t {
+    std::size_t j = i;
+    while (j < message.size() && j - i < 9 && message[j] >= '0' && message[j] <= '9') ++j;
+    if (j == i || j >= message.size() || message[j] != end) return std::string::npos;
+    *value = std::stoi(message.substr(i, j - i));
+    return j + 1;
+  };
+  for (std::size_t c = message.find(':'); c != std::string::npos; c = message.find(':', c + 1)) {
+    int line = 0, column = 0;
+    const std::size_t after_line = number(c + 1, ':', &line);
+    if (after_line == std::string::npos) continue;
+    const std::size_t after_column = number(after_line, ':', &column);
+    if (after_column == std::string::npos || after_column >= message.size() ||
+        message[after_column] != ' ')
+      continue;
+    e.placed = true;
+    e.file = message.substr(0, c);
+    e.line = line;
+    e.column = column;
+    e.what = message.substr(after_column + 1);
+    break;
+  }
+  if (!e.placed) e.what = message;
+  if (const std::size_t k = message.find("key '"); k != std::string::npos) {
+    const std::size_t end = message.find('\'', k + 5);
+    if (end != std::string::npos) e.key = message.substr(k + 5, end - k - 5);
+  }
+  return e;
+}
+
 }  // namespace fnmpc::config

@@ -17,6 +17,15 @@ class ConfigError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// Where a ConfigError message says it happened: "file:line:column: key 'k': what" (the
+/// first ":<line>:<column>: " ends the file name, which may itself contain ':').
+struct ErrorPlace {
+  bool placed = false;  ///< the message starts with file:line:column
+  std::string file, key, what;
+  int line = 0, column = 0;
+};
+ErrorPlace ParseErrorPlace(const std::string& message);
+
 /// Strict reader of one YAML mapping: every key must be read exactly as declared,
 /// unknown keys are reported by Finish(), and every error carries
 /// "file:line:column: key 'a.b.c': what". Used at the edge (apps, ros) only.

@@ -5,7 +5,6 @@
 #include <pybind11/eigen.h>
 #include <pybind11/stl.h>
 
-#include <regex>
 #include <string>
 
 #include "apps/fnmpc/scenario_runner.hpp"
@@ -21,22 +20,20 @@ namespace {
 
 /// Sets file/line/column/key on the Python exception object `err` from `message`.
 void AnnotateConfigError(const std::string& message, py::object& err) {
-  static const std::regex kWhere(R"(^(.*?):(\d+):(\d+): )");
-  static const std::regex kKey(R"(key '([^']*)')");
-  std::smatch where, key;
+  const config::ErrorPlace place = config::ParseErrorPlace(message);
   py::object none = py::none();
   err.attr("file") = none;
   err.attr("line") = none;
   err.attr("column") = none;
   err.attr("key") = none;
-  if (std::regex_search(message, where, kWhere)) {
-    err.attr("file") = where[1].str();
-    err.attr("line") = std::stoi(where[2].str());
-    err.attr("column") = std::stoi(where[3].str());
+  if (place.placed) {
+    err.attr("file") = place.file;
+    err.attr("line") = place.line;
+    err.attr("column") = place.column;
   } else if (const auto colon = message.find(": "); colon != std::string::npos) {
     err.attr("file") = message.substr(0, colon);  // "path: cannot open file"
   }
-  if (std::regex_search(message, key, kKey)) err.attr("key") = key[1].str();
+  if (!place.key.empty()) err.attr("key") = place.key;
 }
 
 void BindVehicle(py::module_& m) {

@@ -66,6 +66,22 @@ const std::string kVehicle = std::string(FNMPC_SOURCE_DIR) + "/config/vehicles/s
 const std::string kTriangle = "triangle.yaml";
 
 // ---- Item 8: duplicate keys.
+TEST(ErrorPlaceTest, SplitsFileLineColumnAndKey) {
+  // The first ":<line>:<column>: " ends the file name, which may contain ':' itself.
+  const ErrorPlace e = ParseErrorPlace("dir:a/b.yaml:12:3: key 'vehicles[1].mass': must be > 0");
+  EXPECT_TRUE(e.placed);
+  EXPECT_EQ(e.file, "dir:a/b.yaml");
+  EXPECT_EQ(e.line, 12);
+  EXPECT_EQ(e.column, 3);
+  EXPECT_EQ(e.key, "vehicles[1].mass");
+  EXPECT_EQ(e.what, "key 'vehicles[1].mass': must be > 0");
+  const ErrorPlace n = ParseErrorPlace("x.yaml: cannot open file (No such file or directory)");
+  EXPECT_FALSE(n.placed);
+  EXPECT_TRUE(n.key.empty());
+  EXPECT_FALSE(ParseErrorPlace("x.yaml:12: no column").placed);
+  EXPECT_FALSE(ParseErrorPlace("x.yaml:1:2 missing the space after the colon").placed);
+}
+
 TEST(InputHardeningTest, DuplicateKeyIsRejectedNamingBothLines) {
   const std::string text = FileText(kVehicle) + "mass: -5\n";
   const std::string e = VehicleError(text);
