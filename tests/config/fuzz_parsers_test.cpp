@@ -189,14 +189,14 @@ const std::string kRoot = std::string(FNMPC_SOURCE_DIR) + "/config/";
 
 TEST(FuzzParsersTest, VehicleYaml) {
   const std::string seed = ReadTextFile(kRoot + "vehicles/storm-drone-4.yaml");
-  Expect(Fuzz(seed, "v\\.yaml", 11, "key",
+  Expect(Fuzz(seed, "v.yaml", 11, "key",
               [](const std::string& t) { ParseVehicle(YamlMap::LoadString(t, "v.yaml")); }),
          "vehicle");
 }
 
 TEST(FuzzParsersTest, SensorsYaml) {
   const std::string seed = ReadTextFile(kRoot + "sensors/default.yaml");
-  Expect(Fuzz(seed, "s\\.yaml", 12, "key",
+  Expect(Fuzz(seed, "s.yaml", 12, "key",
               [](const std::string& t) { ParseSensors(YamlMap::LoadString(t, "s.yaml")); }),
          "sensors");
 }
@@ -204,7 +204,7 @@ TEST(FuzzParsersTest, SensorsYaml) {
 TEST(FuzzParsersTest, ScenarioYaml) {
   for (const std::string file : {"triangle.yaml", "manual-leader.yaml"}) {
     const std::string seed = test::ShippedScenarioText(file);
-    Expect(Fuzz(seed, "x\\.yaml", 13, "key",
+    Expect(Fuzz(seed, "x.yaml", 13, "key",
                 [](const std::string& t) { ParseScenario(YamlMap::LoadString(t, "x.yaml")); }),
            "scenario " + file);
   }
@@ -216,7 +216,7 @@ TEST(FuzzParsersTest, CampaignYaml) {
       "pendulum:\n  wire_separation: 0.3\n  wire_length: 1.2\n"
       "  runs: {x: pendulum_x.csv, y: pendulum_y.csv, z: pendulum_z.csv}\n"
       "attitude_steps: attitude_steps.csv\nflight: flight.csv\n";
-  Expect(Fuzz(seed, "c\\.yaml", 14, "key",
+  Expect(Fuzz(seed, "c.yaml", 14, "key",
               [](const std::string& t) { ParseCampaign(YamlMap::LoadString(t, "c.yaml")); }),
          "campaign");
 }
@@ -230,13 +230,13 @@ TEST(FuzzParsersTest, SysidAndCalibrateCsv) {
     steps += std::to_string(t) + ",0.1,0,0.2,0.09,0.001,3.1\n";
     flight += std::to_string(t) + ",0,0,1,0,0,0,0.01,0,3.14,13.4,0,0,0,16.1\n";
   }
-  Expect(Fuzz(steps, "a\\.csv", 15, "column",
+  Expect(Fuzz(steps, "a.csv", 15, "column",
               [](const std::string& t) {
                 ParseCsv(t, "a.csv",
                          {"t", "roll_ref", "pitch_ref", "yaw_ref", "roll", "pitch", "yaw"}, "t");
               }),
          "attitude_steps.csv");
-  Expect(Fuzz(flight, "f\\.csv", 16, "column",
+  Expect(Fuzz(flight, "f.csv", 16, "column",
               [](const std::string& t) {
                 ParseCsv(t, "f.csv",
                          {"t", "x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw",
