@@ -151,9 +151,12 @@ int Convert(const std::string& bag_file, const std::string& scenario_file, const
       const bool window = t >= sc.trajectory_start && t < config::LandingTime(sc, i);
       const bool steady =
           window && trajectory.TimeSinceStop(t - sc.trajectory_start) >= sc.settle_time;
-      std::array<double, 2> err{kNaN, kNaN};
-      std::array<Vec3, 2> rel{Vec3::Constant(kNaN), Vec3::Constant(kNaN)};
-      std::array<Vec3, 2> est_rel{Vec3::Constant(kNaN), Vec3::Constant(kNaN)};
+      // Every neighbour's error; the CSV has columns for the first two.
+      std::array<double, formation::kMaxNeighbours> err;
+      err.fill(kNaN);
+      std::array<Vec3, formation::kMaxNeighbours> rel, est_rel;
+      rel.fill(Vec3::Constant(kNaN));
+      est_rel.fill(Vec3::Constant(kNaN));
       double ferr = kNaN, track = kNaN;
       Vec3 ref = Vec3::Constant(kNaN);
       if (!v.leader) {
