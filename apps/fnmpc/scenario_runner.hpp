@@ -54,8 +54,8 @@ void ApplyReality(const config::ScenarioConfig& scenario, std::uint64_t seed,
 /// (entries beyond the neighbour count stay NaN). NaN for the leader.
 double FormationError(const config::ScenarioConfig& scenario, int i,
                       const std::vector<Vec3>& positions, double yaw,
-                      std::array<double, 2>* per_neighbour = nullptr,
-                      std::array<Vec3, 2>* relative = nullptr);
+                      std::array<double, formation::kMaxNeighbours>* per_neighbour = nullptr,
+                      std::array<Vec3, formation::kMaxNeighbours>* relative = nullptr);
 
 /// Options of one run.
 struct RunOptions {

@@ -52,7 +52,11 @@ struct Stats {
 struct Sample {
   double t = kNaN;
   bool steady = false;
-  std::array<double, 2> per{kNaN, kNaN};
+  std::array<double, formation::kMaxNeighbours> per = [] {
+    std::array<double, formation::kMaxNeighbours> a;
+    a.fill(kNaN);
+    return a;
+  }();
 };
 
 struct Observed {
@@ -233,7 +237,7 @@ void Watch() {
         }
         const auto& v = g_scenario.vehicles[i];
         if (v.leader) continue;
-        std::array<double, 2> per{kNaN, kNaN};
+        std::array<double, formation::kMaxNeighbours> per;  // filled by FormationError
         const double e = app::FormationError(g_scenario, i, pos, euler[i].z(), &per);
         if (window) g_obs.samples_of[i].push_back({t, steady, per});
         if (window) g_obs.follower[i].errors.push_back(e);
