@@ -13,6 +13,7 @@
 #include <ros/spinner.h>
 #include <signal.h>
 #include <sys/wait.h>
+#include <unistd.h>
 #include <xmlrpcpp/XmlRpcClient.h>
 
 #include <array>
@@ -480,7 +481,10 @@ int main(int argc, char** argv) {
     pnh.param("kill_time", g_settings.kill_time, g_settings.kill_time);
     pnh.param("cli", g_settings.cli, std::string());
     const char* tmp = std::getenv("ROS_LOG_DIR");
-    pnh.param("out_dir", g_settings.out_dir, std::string(tmp ? tmp : "/tmp") + "/formation_check");
+    // One folder per test process: the rostests share ROS_LOG_DIR, and `fnmpc run` refuses
+    // a non-empty run folder (docs/failure.md).
+    pnh.param("out_dir", g_settings.out_dir,
+              std::string(tmp ? tmp : "/tmp") + "/formation_check-" + std::to_string(getpid()));
     Watch();
     RunCli();  // after the flight: the sim is idle then and the CLI run gets the CPU
   } catch (const std::exception& e) {
