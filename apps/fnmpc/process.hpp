@@ -11,7 +11,8 @@ namespace fnmpc::app {
 /// argv[1..] passed verbatim (no shell: quotes, `$()` and spaces in paths are not
 /// interpreted), the current environment plus `extra_env` ("NAME=value" entries, which
 /// replace variables of the same name), and waits for it. Returns the exit status, 128 +
-/// signal number when it was killed, or -1 when it could not be started.
+/// signal number when it was killed or when fnmpc itself received SIGINT / SIGTERM while
+/// waiting (the signal is passed on to the helper), or -1 when it could not be started.
 int RunProgram(const std::vector<std::string>& argv,
                const std::vector<std::string>& extra_env = {});
 

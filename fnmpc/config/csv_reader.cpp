@@ -74,7 +74,14 @@ CsvTable ParseCsv(const std::string& text, const std::string& name,
       break;
     }
   }
-  if (header.empty()) throw ConfigError(Where(name, 1, 1) + ": empty file (no header row)");
+  // Errors about the whole table name the column they stop from being read: the first
+  // required one (no header) or the time column (no rows), so every error has file, line and
+  // column.
+  const std::string first_column = required.empty() ? time_column : required.front();
+  if (header.empty()) {
+    throw ConfigError(Where(name, 1, 1) + ": column '" + first_column +
+                      "': empty file (no header row)");
+  }
   const int header_line = line_no;
   std::vector<std::size_t> index(required.size());
   for (std::size_t r = 0; r < required.size(); ++r) {
@@ -122,7 +129,10 @@ CsvTable ParseCsv(const std::string& text, const std::string& name,
     }
     ++table.rows_;
   }
-  if (table.rows_ == 0) throw ConfigError(Where(name, header_line, 1) + ": no data rows");
+  if (table.rows_ == 0) {
+    const std::string column = time_column.empty() ? first_column : time_column;
+    throw ConfigError(Where(name, header_line, 1) + ": column '" + column + "': no data rows");
+  }
   return table;
 }
 

@@ -6,6 +6,7 @@
 #include <map>
 
 #include "fnmpc/config/text_file.hpp"
+#include "fnmpc/config/yaml_key_at_line.hpp"
 
 namespace fnmpc::config {
 
@@ -15,15 +16,26 @@ std::string Where(const std::string& file, const YAML::Mark& mark) {
   return file + ":" + std::to_string(mark.line + 1) + ":" + std::to_string(mark.column + 1);
 }
 
+/// "name:line:column: key 'k'" for an error about the document's structure at `mark`: the
+/// key is the one whose region of `text` the mark falls in (kTopLevelKey outside every key;
+/// an unknown place counts as the start of the document).
+std::string WhereInText(const std::string& name, const std::string& text, YAML::Mark mark) {
+  if (mark.is_null()) mark = YAML::Mark();  // line 0, column 0
+  return Where(name, mark) + ": key '" + YamlKeyAtLine(text, mark.line + 1) + "'";
+}
+
 /// Rejects a mapping that holds the same key twice (yaml-cpp keeps both, and a lookup would
 /// silently return the first), anywhere in the document.
-void RejectDuplicateKeys(const YAML::Node& node, const std::string& name, int depth,
-                         long* visited) {
+void RejectDuplicateKeys(const YAML::Node& node, const std::string& name, const std::string& text,
+                         int depth, long* visited) {
   // Nesting deeper than any file format needs (or an alias to an enclosing node) and alias
   // chains that expand to millions of nodes are refused before they cost anything.
-  if (depth > 64) throw ConfigError(Where(name, node.Mark()) + ": nesting deeper than 64 levels");
+  if (depth > 64) {
+    throw ConfigError(WhereInText(name, text, node.Mark()) + ": nesting deeper than 64 levels");
+  }
   if (++*visited > 1000000) {
-    throw ConfigError(Where(name, node.Mark()) + ": more than 10^6 nodes (alias expansion?)");
+    throw ConfigError(WhereInText(name, text, node.Mark()) +
+                      ": more than 10^6 nodes (alias expansion?)");
   }
   if (node.IsMap()) {
     std::map<std::string, YAML::Mark> seen;
@@ -36,14 +48,14 @@ void RejectDuplicateKeys(const YAML::Node& node, const std::string& name, int de
                             std::to_string(it->second.line + 1) + ")");
         }
       }
-      RejectDuplicateKeys(kv.second, name, depth + 1, visited);
+      RejectDuplicateKeys(kv.second, name, text, depth + 1, visited);
     }
   } else if (node.IsSequence()) {
-    for (const auto& e : node) RejectDuplicateKeys(e, name, depth + 1, visited);
+    for (const auto& e : node) RejectDuplicateKeys(e, name, text, depth + 1, visited);
   }
 }
 
-/// "name:line:column" of byte `pos` of `text`.
+/// "name:line:column: key 'k'" of byte `pos` of `text` (the key as in WhereInText).
 std::string WhereByte(const std::string& name, const std::string& text, std::size_t pos) {
   int line = 1, column = 1;
   for (std::size_t i = 0; i < pos && i < text.size(); ++i) {
@@ -54,14 +66,15 @@ std::string WhereByte(const std::string& name, const std::string& text, std::siz
       ++column;
     }
   }
-  return name + ":" + std::to_string(line) + ":" + std::to_string(column);
+  return name + ":" + std::to_string(line) + ":" + std::to_string(column) + ": key '" +
+         YamlKeyAtLine(text, line) + "'";
 }
 
 YamlMap FromRoot(const YAML::Node& root, const std::string& name) {
   if (!root.IsMap()) {
     // An empty document has no mark: its place is the start of the file.
     const std::string where = root.Mark().is_null() ? name + ":1:1" : Where(name, root.Mark());
-    throw ConfigError(where + ": expected a mapping at the top level");
+    throw ConfigError(where + ": key '" + kTopLevelKey + "': expected a mapping at the top level");
   }
   return {root, name, ""};
 }
@@ -78,10 +91,10 @@ YamlMap YamlMap::LoadString(const std::string& text, const std::string& name) {
   try {
     root = YAML::Load(text);
   } catch (const YAML::Exception& e) {
-    throw ConfigError(Where(name, e.mark) + ": YAML syntax error: " + e.msg);
+    throw ConfigError(WhereInText(name, text, e.mark) + ": YAML syntax error: " + e.msg);
   }
   long visited = 0;
-  RejectDuplicateKeys(root, name, 0, &visited);
+  RejectDuplicateKeys(root, name, text, 0, &visited);
   return FromRoot(root, name);
 }
 
@@ -91,8 +104,9 @@ YamlMap::YamlMap(YAML::Node node, std::string file, std::string prefix)
 bool YamlMap::Has(const std::string& key) const { return static_cast<bool>(node_[key]); }
 
 ConfigError YamlMap::Error(const std::string& what) const {
-  return ConfigError(Where(file_, node_.Mark()) + ": " +
-                     (prefix_.empty() ? "" : "in '" + prefix_ + "': ") + what);
+  // The map's own key is its prefix without the trailing '.'.
+  const std::string key = prefix_.empty() ? kTopLevelKey : prefix_.substr(0, prefix_.size() - 1);
+  return ConfigError(Where(file_, node_.Mark()) + ": key '" + key + "': " + what);
 }
 
 ConfigError YamlMap::ErrorAt(const std::string& key, const std::string& what) const {

@@ -94,6 +94,24 @@ expect 3 "run leaving its envelope exits 3" -- "$fnmpc" run "$tmp/env.yaml" --du
 stderr_has "vehicle leader: left the flight envelope" "failure names vehicle and reason"
 grep -q '"complete": true' "$tmp/env/summary.json" || { echo "FAIL: summary not complete"; fails=$((fails + 1)); }
 
+# ---- MuJoCo instability (item 2): a physically absurd but valid gust (1e8 m/s at 4 s; the
+# drag of such a wind accelerates a vehicle beyond MuJoCo's 1e10 limit within a step, so
+# MuJoCo warns "Nan, Inf or huge value in QACC/QVEL" and would reset the world). The run
+# stops at that step with exit 4; stderr and summary.json give the time and the state.
+sed 's/^metrics:/reality:\n  wake: false\n  wind:\n    discrete_gusts:\n      - {time: 4.0, duration: 1.0, amplitude: [1.0e8, 0.0, 0.0]}\nmetrics:/' \
+  "$tmp/tri.yaml" >"$tmp/gust.yaml"
+# (MuJoCo's own warning goes to MUJOCO_LOG.TXT in the working directory: $tmp.)
+cd "$tmp" || exit 1
+expect 4 "run whose simulator becomes unstable exits 4" -- "$fnmpc" run "$tmp/gust.yaml" --duration 20 -q -o "$tmp/gust"
+cd - >/dev/null || exit 1
+stderr_has "MuJoCo instability at t = 4" "instability message gives the time"
+stderr_has "vehicle 0 position (" "instability message gives the state"
+grep -q '"complete": false' "$tmp/gust/summary.json" || { echo "FAIL: unstable run not marked incomplete"; fails=$((fails + 1)); }
+grep -q '"error": "\[World\] MuJoCo instability' "$tmp/gust/run-01/summary.json" || { echo "FAIL: run summary lacks the error"; fails=$((fails + 1)); }
+# The leader's CSV ends at the instability (no rows from a reset world after it).
+last_t=$(tail -1 "$tmp/gust/run-01/leader.csv" | cut -d, -f1)
+awk -v t="$last_t" 'BEGIN { exit !(t >= 3.9 && t <= 4.1) }' || { echo "FAIL: leader.csv ends at t = $last_t, expected about 4"; fails=$((fails + 1)); }
+
 # ---- SIGINT (item 10) into a reused folder with --overwrite: emptied first, the run in
 # progress stops after the current step, summaries "complete": false, exit 130. (--runs 50:
 # still running after 5 s on any machine.)
@@ -118,6 +136,52 @@ last=$(ls -d "$tmp"/int/run-* 2>/dev/null | sort | tail -1)
 grep -q '"stopped": "interrupted"' "$last/summary.json" || { echo "FAIL: $last/summary.json not marked"; fails=$((fails + 1)); }
 [[ -s "$last/leader.csv" ]] || { echo "FAIL: interrupted run lost its CSV"; fails=$((fails + 1)); }
 ls "$last" | grep -q '\.part$' && { echo "FAIL: .part files left"; fails=$((fails + 1)); }
+
+# ---- sysid and calibrate (items 9, 10): glog never prints "Logging before
+# InitGoogleLogging"; Ctrl-C during sysid's plotting stops the command with 130 and a message.
+if "$fnmpc" sysid synth "$tmp/syn" >/dev/null 2>"$tmp/err"; then
+  expect 0 "sysid on a synthetic campaign" -- "$fnmpc" sysid "$tmp/syn/campaign.yaml" -o "$tmp/syn/v.yaml" --no-plots
+  if grep -q "InitGoogleLogging" "$tmp/err"; then echo "FAIL: sysid: glog 'Logging before InitGoogleLogging'"; fails=$((fails + 1)); fi
+  # A flight without thrust commands leaves the thrust scale unobservable: Ceres' covariance
+  # logs "Jacobian matrix is rank deficient" through glog (before glog was initialised this
+  # came with "Logging before InitGoogleLogging() is written to STDERR").
+  awk -F, -v OFS=, 'NR > 1 { $11 = 0 } 1' "$tmp/syn/flight.csv" >"$tmp/syn/no-thrust.csv"
+  expect "0|3" "calibrate on a flight without thrust" -- "$fnmpc" calibrate "$tmp/syn/v.yaml" "$tmp/syn/no-thrust.csv" -o "$tmp/syn/cal.yaml" --no-plots
+  stderr_has "rank deficient" "Ceres logged through glog"
+  if grep -q "InitGoogleLogging" "$tmp/err"; then echo "FAIL: calibrate: glog 'Logging before InitGoogleLogging'"; fails=$((fails + 1)); fi
+  # Ctrl-C reaches the whole foreground process group: fnmpc and its plotter. With job
+  # control on (set -m) the background job gets its own process group and keeps SIGINT's
+  # default action, as a job started from a terminal, so that group is signalled as a
+  # terminal's Ctrl-C would.
+  rm -f "$tmp/syn/v.yaml"
+  set -m
+  "$fnmpc" sysid "$tmp/syn/campaign.yaml" -o "$tmp/syn/v.yaml" >"$tmp/out" 2>"$tmp/err" &
+  pid=$!
+  set +m
+  plotter=""
+  for _ in $(seq 1 1200); do
+    plotter=$(pgrep -P "$pid" -f sysid_report.py) && break
+    kill -0 "$pid" 2>/dev/null || break
+    sleep 0.05
+  done
+  if [[ -z $plotter ]]; then
+    echo "FAIL: the sysid plotter was never seen running"; fails=$((fails + 1)); wait $pid
+  else
+    kill -INT -- -"$pid"
+    wait $pid
+    rc=$?
+    if [[ $rc -ne 130 ]]; then
+      echo "FAIL: SIGINT during sysid plotting: exit $rc, expected 130"; cat "$tmp/err"; fails=$((fails + 1))
+    else
+      echo "ok: SIGINT during sysid plotting exit 130"
+    fi
+    stderr_has "sysid_report.py interrupted (signal 2)" "interrupted plotting says so"
+    [[ -e "$tmp/syn/v.yaml" ]] && { echo "FAIL: interrupted sysid wrote its vehicle file"; fails=$((fails + 1)); }
+    ls -d "$tmp"/syn/v.yaml.report* >/dev/null 2>&1 && { echo "FAIL: interrupted sysid left its report folder"; fails=$((fails + 1)); }
+  fi
+else
+  echo "FAIL: sysid synth failed"; sed 's/^/  stderr: /' "$tmp/err" | tail -5; fails=$((fails + 1))
+fi
 
 echo "cli_test: $fails failure(s)"
 [[ $fails -eq 0 ]]
