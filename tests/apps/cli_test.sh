@@ -98,14 +98,19 @@ grep -q '"complete": true' "$tmp/env/summary.json" || { echo "FAIL: summary not 
 # drag of such a wind accelerates a vehicle beyond MuJoCo's 1e10 limit within a step, so
 # MuJoCo warns "Nan, Inf or huge value in QACC/QVEL" and would reset the world). The run
 # stops at that step with exit 4; stderr and summary.json give the time and the state.
-sed 's/^metrics:/reality:\n  wake: false\n  wind:\n    discrete_gusts:\n      - {time: 4.0, duration: 1.0, amplitude: [1.0e8, 0.0, 0.0]}\nmetrics:/' \
-  "$tmp/tri.yaml" >"$tmp/gust.yaml"
+# follower1's relative sensor reaches 2 m only, short of its neighbours at 2.5 m and 3 m: two
+# warnings (item 7), printed and recorded in summary.json.
+echo "relative: {max_range: 2.0}" >"$tmp/short-range.yaml"
+sed -e 's/^metrics:/reality:\n  wake: false\n  wind:\n    discrete_gusts:\n      - {time: 4.0, duration: 1.0, amplitude: [1.0e8, 0.0, 0.0]}\nmetrics:/' \
+  -e "/^  - name: follower1/a\\    sensors_file: $tmp/short-range.yaml" "$tmp/tri.yaml" >"$tmp/gust.yaml"
 # (MuJoCo's own warning goes to MUJOCO_LOG.TXT in the working directory: $tmp.)
 cd "$tmp" || exit 1
 expect 4 "run whose simulator becomes unstable exits 4" -- "$fnmpc" run "$tmp/gust.yaml" --duration 20 -q -o "$tmp/gust"
 cd - >/dev/null || exit 1
 stderr_has "MuJoCo instability at t = 4" "instability message gives the time"
 stderr_has "vehicle 0 position (" "instability message gives the state"
+stderr_has "fnmpc run: warning: .*beyond the relative sensor's max_range" "unreachable neighbour warned"
+grep -q "beyond the relative sensor's max_range" "$tmp/gust/summary.json" || { echo "FAIL: warning not recorded in summary.json"; fails=$((fails + 1)); }
 grep -q '"complete": false' "$tmp/gust/summary.json" || { echo "FAIL: unstable run not marked incomplete"; fails=$((fails + 1)); }
 grep -q '"error": "\[World\] MuJoCo instability' "$tmp/gust/run-01/summary.json" || { echo "FAIL: run summary lacks the error"; fails=$((fails + 1)); }
 # The leader's CSV ends at the instability (no rows from a reset world after it).
@@ -136,6 +141,20 @@ last=$(ls -d "$tmp"/int/run-* 2>/dev/null | sort | tail -1)
 grep -q '"stopped": "interrupted"' "$last/summary.json" || { echo "FAIL: $last/summary.json not marked"; fails=$((fails + 1)); }
 [[ -s "$last/leader.csv" ]] || { echo "FAIL: interrupted run lost its CSV"; fails=$((fails + 1)); }
 ls "$last" | grep -q '\.part$' && { echo "FAIL: .part files left"; fails=$((fails + 1)); }
+# SIGTERM likewise: exit 143, folder marked incomplete.
+"$fnmpc" run "$tri" -q --runs 50 -o "$tmp/term" >"$tmp/out" 2>"$tmp/err" &
+pid=$!
+sleep 3
+kill -TERM $pid
+wait $pid
+rc=$?
+if [[ $rc -ne 143 ]]; then
+  echo "FAIL: SIGTERM exit $rc, expected 143"; cat "$tmp/err"; fails=$((fails + 1))
+else
+  echo "ok: SIGTERM exit 143"
+fi
+stderr_has "interrupted (signal 15)" "SIGTERM stop says so"
+grep -q '"complete": false' "$tmp/term/summary.json" || { echo "FAIL: terminated summary not marked"; fails=$((fails + 1)); }
 
 # ---- sysid and calibrate (items 9, 10): glog never prints "Logging before
 # InitGoogleLogging"; Ctrl-C during sysid's plotting stops the command with 130 and a message.
@@ -153,7 +172,7 @@ if "$fnmpc" sysid synth "$tmp/syn" >/dev/null 2>"$tmp/err"; then
   # control on (set -m) the background job gets its own process group and keeps SIGINT's
   # default action, as a job started from a terminal, so that group is signalled as a
   # terminal's Ctrl-C would.
-  rm -f "$tmp/syn/v.yaml"
+  rm -rf "$tmp/syn/v.yaml" "$tmp/syn/v.yaml.report"
   set -m
   "$fnmpc" sysid "$tmp/syn/campaign.yaml" -o "$tmp/syn/v.yaml" >"$tmp/out" 2>"$tmp/err" &
   pid=$!
@@ -178,6 +197,30 @@ if "$fnmpc" sysid synth "$tmp/syn" >/dev/null 2>"$tmp/err"; then
     stderr_has "sysid_report.py interrupted (signal 2)" "interrupted plotting says so"
     [[ -e "$tmp/syn/v.yaml" ]] && { echo "FAIL: interrupted sysid wrote its vehicle file"; fails=$((fails + 1)); }
     ls -d "$tmp"/syn/v.yaml.report* >/dev/null 2>&1 && { echo "FAIL: interrupted sysid left its report folder"; fails=$((fails + 1)); }
+  fi
+  # SIGTERM to fnmpc alone (kill PID): passed on to the plotter, exit 143 with a message.
+  "$fnmpc" sysid "$tmp/syn/campaign.yaml" -o "$tmp/syn/v.yaml" >"$tmp/out" 2>"$tmp/err" &
+  pid=$!
+  plotter=""
+  for _ in $(seq 1 1200); do
+    plotter=$(pgrep -P "$pid" -f sysid_report.py) && break
+    kill -0 "$pid" 2>/dev/null || break
+    sleep 0.05
+  done
+  if [[ -z $plotter ]]; then
+    echo "FAIL: the sysid plotter was never seen running (SIGTERM case)"; fails=$((fails + 1)); wait $pid
+  else
+    kill -TERM "$pid"
+    wait $pid
+    rc=$?
+    if [[ $rc -ne 143 ]]; then
+      echo "FAIL: SIGTERM during sysid plotting: exit $rc, expected 143"; cat "$tmp/err"; fails=$((fails + 1))
+    else
+      echo "ok: SIGTERM during sysid plotting exit 143"
+    fi
+    stderr_has "sysid_report.py interrupted (signal 15)" "terminated plotting says so"
+    kill -0 "$plotter" 2>/dev/null && { echo "FAIL: the plotter outlived fnmpc"; kill "$plotter"; fails=$((fails + 1)); }
+    [[ -e "$tmp/syn/v.yaml" ]] && { echo "FAIL: terminated sysid wrote its vehicle file"; fails=$((fails + 1)); }
   fi
 else
   echo "FAIL: sysid synth failed"; sed 's/^/  stderr: /' "$tmp/err" | tail -5; fails=$((fails + 1))
