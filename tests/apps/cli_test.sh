@@ -35,6 +35,19 @@ stderr_has() {
   fi
 }
 
+# plotter_of PID: prints the PID of PID's child process running sysid_report.py (read from
+# /proc, so no procps is needed); fails when there is none.
+plotter_of() {
+  local p f cmd
+  for p in /proc/[0-9]*; do
+    read -r -a f <"$p/stat" 2>/dev/null || continue
+    [[ ${f[3]} == "$1" ]] || continue
+    cmd=$(tr '\0' ' ' <"$p/cmdline" 2>/dev/null)
+    [[ $cmd == *sysid_report.py* ]] && { echo "${p#/proc/}"; return 0; }
+  done
+  return 1
+}
+
 tri=$src/config/scenarios/triangle.yaml
 # The triangle with its vehicle and sensors paths made absolute, to be edited in $tmp.
 sed -e "s#\.\./vehicles/#$src/config/vehicles/#" -e "s#\.\./sensors/#$src/config/sensors/#" \
@@ -179,7 +192,7 @@ if "$fnmpc" sysid synth "$tmp/syn" >/dev/null 2>"$tmp/err"; then
   set +m
   plotter=""
   for _ in $(seq 1 1200); do
-    plotter=$(pgrep -P "$pid" -f sysid_report.py) && break
+    plotter=$(plotter_of "$pid") && break
     kill -0 "$pid" 2>/dev/null || break
     sleep 0.05
   done
@@ -203,7 +216,7 @@ if "$fnmpc" sysid synth "$tmp/syn" >/dev/null 2>"$tmp/err"; then
   pid=$!
   plotter=""
   for _ in $(seq 1 1200); do
-    plotter=$(pgrep -P "$pid" -f sysid_report.py) && break
+    plotter=$(plotter_of "$pid") && break
     kill -0 "$pid" 2>/dev/null || break
     sleep 0.05
   done
