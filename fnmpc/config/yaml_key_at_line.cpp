@@ -101,29 +101,35 @@ std::string Index(int i) {
   return s;
 }
 
-/// Path of node line `n`.
+/// Path of node line `n`: walks up through the enclosing keys (a loop, not recursion, so a
+/// pathologically deep indentation cannot exhaust the stack).
 std::string PathOf(const std::vector<Line>& lines, int n) {
-  const Line& l = lines[n];
-  if (l.key.empty()) {  // a sequence item "- ...": its parent key may share its column
-    const int parent = KeyAbove(lines, n, [&](int c) { return c <= l.dash; });
-    const std::string index = Index(ItemIndex(lines, parent, n, l.dash));
-    return parent < 0 ? index : PathOf(lines, parent) + index;
-  }
-  const int parent = KeyAbove(lines, n, [&](int c) { return c < l.content; });
-  // The mapping holding this key is a sequence item when its first key follows a "- ".
-  int item = -1;
-  for (int k = n; k > parent; --k) {
-    if (!lines[k].key.empty() && lines[k].content == l.content && lines[k].dash >= 0) {
-      item = k;
-      break;
+  std::vector<std::string> suffixes;  // from `n` up to the top level
+  while (n >= 0) {
+    const Line& l = lines[n];
+    if (l.key.empty()) {  // a sequence item "- ...": its parent key may share its column
+      const int parent = KeyAbove(lines, n, [&](int c) { return c <= l.dash; });
+      suffixes.push_back(Index(ItemIndex(lines, parent, n, l.dash)));
+      n = parent;
+      continue;
     }
+    const int parent = KeyAbove(lines, n, [&](int c) { return c < l.content; });
+    // The mapping holding this key is a sequence item when its first key follows a "- ".
+    std::string suffix;
+    for (int k = n; k > parent; --k) {
+      if (!lines[k].key.empty() && lines[k].content == l.content && lines[k].dash >= 0) {
+        suffix = Index(ItemIndex(lines, parent, k, lines[k].dash));
+        break;
+      }
+    }
+    suffix.push_back('.');
+    suffix.append(l.key);
+    suffixes.push_back(std::move(suffix));
+    n = parent;
   }
-  std::string path = parent < 0 ? "" : PathOf(lines, parent);
-  if (item >= 0) {
-    path += Index(ItemIndex(lines, parent, item, lines[item].dash));
-  }
-  if (!path.empty()) path.push_back('.');
-  path.append(l.key);
+  std::string path;
+  for (auto it = suffixes.rbegin(); it != suffixes.rend(); ++it) path.append(*it);
+  if (!path.empty() && path.front() == '.') path.erase(0, 1);
   return path;
 }
 

@@ -54,6 +54,11 @@ TEST(YamlKeyAtLineTest, NamesTheKeyOfTheLineOrTheRegionItFallsIn) {
   EXPECT_EQ(YamlKeyAtLine("", 1), kTopLevelKey);
   EXPECT_EQ(YamlKeyAtLine("[1, 2", 1), kTopLevelKey);
   EXPECT_EQ(YamlKeyAtLine("a:\r\n  b: 1\r\n", 2), "a.b");
+  EXPECT_EQ(YamlKeyAtLine("- a: 1\n  b: 2\n- c: 3\n", 3), "[1].c");  // a top-level list
+  // 2000 nested keys (far deeper than the parser's 64 levels; 2 MB of indentation).
+  std::string deep;
+  for (int k = 0; k < 2000; ++k) deep += std::string(static_cast<std::size_t>(k), ' ') + "k:\n";
+  EXPECT_EQ(YamlKeyAtLine(deep, 2000).size(), 2000u * 2 - 1);  // "k.k. ... .k"
 }
 
 std::string LoadError(const std::string& text) {
