@@ -103,6 +103,8 @@ def main():
     ap.add_argument("--duration", type=float, default=30.0, help="fnmpc run --duration [s]")
     ap.add_argument("--out", default="", help="run folders (default: a temporary folder)")
     ap.add_argument("--keep", action="store_true", help="keep the temporary folder")
+    ap.add_argument("--reality", choices=("on", "off"),
+                    help="fnmpc run --reality (default: the scenario's; the triangle's is on)")
     a = ap.parse_args()
     if a.runs < 1:
         ap.error("--runs must be >= 1")
@@ -137,7 +139,7 @@ def main():
             yaml.safe_dump(sc, f, sort_keys=False)
         out = os.path.join(work, f"run-{r:03d}")
         cmd = [a.fnmpc, "run", path, "-q", "--seed", str(seed), "--duration", str(a.duration),
-               "-o", out]
+               "-o", out] + (["--reality", a.reality] if a.reality else [])
         p = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         st = stats[kind]
         st["runs"] += 1

@@ -12,8 +12,17 @@
 namespace fnmpc::config {
 namespace {
 
+/// The shipped scenario `name` without its `reality:` line (the shipped reference scenarios
+/// fly with reality on), plus `extra`.
 ScenarioConfig Parse(const std::string& name, const std::string& extra) {
-  return ParseScenario(YamlMap::LoadString(test::ShippedScenarioText(name) + extra, "s.yaml"));
+  std::string text = test::ShippedScenarioText(name);
+  const std::size_t at = text.find("\nreality:");
+  if (at != std::string::npos) text.erase(at + 1, text.find('\n', at + 1) - at);
+  return ParseScenario(YamlMap::LoadString(text + extra, "s.yaml"));
+}
+
+ScenarioConfig Shipped(const std::string& name) {
+  return ParseScenario(YamlMap::LoadString(test::ShippedScenarioText(name), "s.yaml"));
 }
 
 std::string ErrorOf(const std::string& extra) {
@@ -33,7 +42,15 @@ TEST(ScenarioRealityYamlTest, AbsentIsOffAndAnEmptyBlockIsOnWithTheDefaults) {
   EXPECT_TRUE(s.reality.wake);
   EXPECT_TRUE(s.reality.sensors);
   EXPECT_EQ(s.reality.plant.mass, model::PlantSpread{}.mass);
-  EXPECT_TRUE(Parse("flying-leader-paper.yaml", "").reality.enabled);
+}
+
+TEST(ScenarioRealityYamlTest, EveryShippedScenarioFliesWithRealityOn) {
+  for (const char* name : {"triangle.yaml", "manual-leader.yaml", "follower-below-leader.yaml",
+                           "flying-leader-paper.yaml"}) {
+    const ScenarioConfig s = Shipped(name);
+    EXPECT_TRUE(s.reality.enabled) << name;
+    EXPECT_TRUE(s.reality.rotor_aerodynamics && s.reality.wake && s.reality.sensors) << name;
+  }
 }
 
 TEST(ScenarioRealityYamlTest, EveryKeyMapped) {

@@ -1,0 +1,165 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Model side of the validation plots of docs/simulator.md ("Validation against published
+// measurements"), printed as CSV blocks for tools/reality_validation.py:
+//   [propeller]  the simulator's axial-inflow thrust model for the UIUC APC 10x7 at 4011 RPM,
+//                its effective pitch set from the table's first point (as the unit test does);
+//   [wake]       the mean wake velocity below the shipped vehicle hovering (13.4 N);
+//   [force]      the aerodynamic force on the shipped vehicle hovering 2-6 rotor diameters
+//                directly below another, both held in place in the World, reality on (rotor
+//                inflow, advected turbulent wake: mean and standard deviation over 10 s) and
+//                off (steady jet acting as body drag).
+// Usage: reality_validation UIUC_CSV   (tests/sim/data/uiuc_apc10x7_4011rpm.csv)
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "fnmpc/config/vehicle_yaml.hpp"
+#include "fnmpc/sim/downwash.hpp"
+#include "fnmpc/sim/rotor_aero.hpp"
+#include "fnmpc/sim/wake.hpp"
+#include "fnmpc/sim/world.hpp"
+
+namespace {
+
+using fnmpc::Vec3;
+namespace sim = fnmpc::sim;
+
+double ModelCt(const sim::RotorBlade& b, double static_thrust, double n, double j) {
+  const double d = 2.0 * b.radius;
+  const double t =
+      static_thrust * sim::AxialInflowThrustRatio(b, static_thrust, 2.0 * M_PI * n, j * n * d);
+  return t / (b.air_density * n * n * d * d * d * d);
+}
+
+/// First data row (J, C_T) of the UIUC table.
+bool FirstPoint(const std::string& path, double* j, double* ct) {
+  std::ifstream f(path);
+  std::string line;
+  bool header = true;
+  while (std::getline(f, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    if (header) {
+      header = false;
+      continue;
+    }
+    char comma = 0;
+    std::istringstream s(line);
+    return static_cast<bool>(s >> *j >> comma >> *ct) && comma == ',';
+  }
+  return false;
+}
+
+void Propeller(double j0, double ct0) {
+  const sim::RotorBlade b;
+  const double n = 4011.0 / 60.0;
+  const double d = 2.0 * b.radius;
+  const double t_first = ct0 * b.air_density * n * n * d * d * d * d;
+  double lo = t_first, hi = 10.0 * t_first;
+  for (int k = 0; k < 200; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    (ModelCt(b, mid, n, j0) < ct0 ? lo : hi) = mid;
+  }
+  std::printf("[propeller]\nJ,ct_model\n");
+  for (int k = 0; k <= 80; ++k) std::printf("%.3f,%.5f\n", 0.01 * k, ModelCt(b, lo, n, 0.01 * k));
+}
+
+void Wake(double thrust) {
+  const sim::DownwashSettings dw;
+  const double diameter = 2.0 * dw.rotor_radius;
+  const double v_h = sim::HoverInducedVelocity(dw, thrust);
+  std::printf("[wake]\nthrust,v_h,rotor_diameter\n%.4f,%.5f,%.4f\n", thrust, v_h, diameter);
+  std::printf("s_over_D,r_over_D,u_over_vh\n");
+  for (double s_d : {2.0, 4.0, 6.0, 8.0, 12.0}) {
+    for (int k = 0; k <= 60; ++k) {
+      const double r_d = 0.1 * k;
+      const Vec3 v = sim::DownwashVelocity(dw, Vec3::Zero(), Vec3::UnitZ(), thrust,
+                                           Vec3(r_d * diameter, 0.0, -s_d * diameter));
+      std::printf("%.1f,%.2f,%.5f\n", s_d, r_d, -v.z() / v_h);
+    }
+  }
+  std::printf("[centreline]\ns_over_D,uc_over_vh\n");
+  for (int k = 1; k <= 200; ++k) {
+    const double s_d = 0.1 * k;
+    std::printf("%.1f,%.5f\n", s_d, sim::WakeCentrelineVelocity(dw, thrust, s_d * diameter) / v_h);
+  }
+}
+
+struct ForceStats {
+  Vec3 mean = Vec3::Zero();
+  Vec3 sd = Vec3::Zero();
+};
+
+ForceStats ForceBelow(const fnmpc::model::VehicleParams& p, double dz, bool reality) {
+  sim::WorldConfig c;
+  for (int i = 0; i < 2; ++i) {
+    sim::VehicleSpec v;
+    v.params = p;
+    for (fnmpc::SensorSpec* s : {&v.sensors.mocap, &v.sensors.imu, &v.sensors.optical_flow,
+                                 &v.sensors.compass, &v.sensors.battery, &v.sensors.relative}) {
+      s->enabled = false;
+    }
+    v.initial_throttle = p.throttle.Throttle(p.mass * fnmpc::kGravity / 4.0, 16.8);
+    c.vehicles.push_back(v);
+  }
+  c.ground = false;
+  c.battery.fixed_voltage = true;
+  c.downwash.enabled = true;
+  c.reality.wake = reality;
+  c.reality.rotor_aerodynamics = reality;
+  const Vec3 upper(0.0, 0.0, 20.0), lower(0.0, 0.0, 20.0 - dz);
+  c.vehicles[0].position = upper;
+  c.vehicles[1].position = lower;
+  sim::World w(c);
+  std::vector<Vec3> f;
+  for (int k = 0; k < 12000; ++k) {
+    w.SetPose(0, upper, Vec3::Zero());
+    w.SetPose(1, lower, Vec3::Zero());
+    w.StepOnce();
+    if (k >= 2000 && k % 5 == 0) f.push_back(w.GetTrueState(1).aero_force);
+  }
+  ForceStats st;
+  for (const Vec3& x : f) st.mean += x / static_cast<double>(f.size());
+  for (const Vec3& x : f) st.sd += (x - st.mean).cwiseAbs2() / static_cast<double>(f.size());
+  st.sd = st.sd.cwiseSqrt();
+  return st;
+}
+
+void Force(const fnmpc::model::VehicleParams& p) {
+  const double diameter = 2.0 * sim::DownwashSettings().rotor_radius;
+  std::printf("[force]\nseparation_D,fz_on_mean,fz_on_sd,fxy_on_sd,fz_off,weight\n");
+  for (double sep = 2.0; sep <= 6.01; sep += 0.5) {
+    const ForceStats on = ForceBelow(p, sep * diameter, true);
+    const ForceStats off = ForceBelow(p, sep * diameter, false);
+    std::printf("%.1f,%.4f,%.4f,%.4f,%.4f,%.4f\n", sep, on.mean.z(), on.sd.z(),
+                std::hypot(on.sd.x(), on.sd.y()), off.mean.z(), p.mass * fnmpc::kGravity);
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: %s UIUC_CSV\n", argv[0]);
+    return 2;
+  }
+  try {
+    double j0 = 0.0, ct0 = 0.0;
+    if (!FirstPoint(argv[1], &j0, &ct0)) {
+      std::fprintf(stderr, "%s: no 'J,CT' data row\n", argv[1]);
+      return 1;
+    }
+    const fnmpc::model::VehicleParams p = fnmpc::config::LoadVehicleFile(
+        std::string(FNMPC_SOURCE_DIR) + "/config/vehicles/storm-drone-4.yaml");
+    Propeller(j0, ct0);
+    Wake(p.mass * fnmpc::kGravity);
+    Force(p);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
