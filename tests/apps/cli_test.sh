@@ -114,7 +114,8 @@ grep -q '"complete": true' "$tmp/env/summary.json" || { echo "FAIL: summary not 
 # follower1's relative sensor reaches 2 m only, short of its neighbours at 2.5 m and 3 m: two
 # warnings (item 7), printed and recorded in summary.json.
 echo "relative: {max_range: 2.0}" >"$tmp/short-range.yaml"
-sed -e 's/^metrics:/reality:\n  wake: false\n  wind:\n    discrete_gusts:\n      - {time: 4.0, duration: 1.0, amplitude: [1.0e8, 0.0, 0.0]}\nmetrics:/' \
+# (The shipped triangle's own `reality: {}` line is replaced by this block.)
+sed -e '/^reality:/d' -e 's/^metrics:/reality:\n  wake: false\n  wind:\n    discrete_gusts:\n      - {time: 4.0, duration: 1.0, amplitude: [1.0e8, 0.0, 0.0]}\nmetrics:/' \
   -e "/^  - name: follower1/a\\    sensors_file: $tmp/short-range.yaml" "$tmp/tri.yaml" >"$tmp/gust.yaml"
 # (MuJoCo's own warning goes to MUJOCO_LOG.TXT in the working directory: $tmp.)
 cd "$tmp" || exit 1
