@@ -12,6 +12,7 @@
 #include <stdexcept>
 
 #include "apps/fnmpc/commands.hpp"
+#include "apps/fnmpc/formation_print.hpp"
 #include "apps/fnmpc/output_files.hpp"
 #include "apps/fnmpc/run_folder.hpp"
 #include "apps/fnmpc/scenario_runner.hpp"
@@ -28,11 +29,13 @@ struct RunArgs {
   std::string scenario;
   std::string out;
   int runs = 1;
+  int jobs = 1;
   long long seed = -1;
   double duration = -1.0;
   CLI::Option* duration_option = nullptr;
   bool quiet = false;
   bool overwrite = false;
+  bool dry_run = false;
   std::string downwash;  // "", "on", "off"
   std::string reality;   // "", "on", "off"
 };
@@ -76,6 +79,10 @@ int Run(const RunArgs& a) {
   }
   if (!a.reality.empty()) sc.reality.enabled = a.reality == "on";
   for (const std::string& w : sc.warnings) fmt::print(stderr, "fnmpc run: warning: {}\n", w);
+  if (a.dry_run) {
+    fmt::print("# {}: the vehicles as flown (fnmpc run --dry-run)\n{}", sc.name, VehiclesYaml(sc));
+    return 0;
+  }
   std::string dir = a.out;
   if (dir.empty()) {
     const std::time_t now = std::time(nullptr);
@@ -89,6 +96,7 @@ int Run(const RunArgs& a) {
   std::signal(SIGTERM, OnStopSignal);
   RunFolderOptions options;
   options.runs = a.runs;
+  options.jobs = a.jobs;
   options.seed = a.seed;
   options.progress = !a.quiet;
   options.scenario_file = a.scenario;
@@ -133,6 +141,10 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
   sub->add_flag("--overwrite", a->overwrite, "empty a non-empty run folder first");
   sub->add_option("--runs", a->runs, "number of runs with seeds seed, seed+1, ...")
       ->check(CLI::Range(1, 10000));
+  sub->add_option("-j,--jobs", a->jobs,
+                  "runs flown at the same time, one thread each; the run folder is the same as "
+                  "with --jobs 1")
+      ->check(CLI::Range(1, 256));
   sub->add_option("--seed", a->seed, "first noise seed (default: the scenario's)")
       ->check(CLI::Range(0LL, 1LL << 53));
   a->duration_option = sub->add_option(
@@ -146,6 +158,9 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
                   "own model; docs/simulator.md)")
       ->check(CLI::IsMember({"on", "off"}));
   sub->add_flag("-q,--quiet", a->quiet, "no progress output");
+  sub->add_flag("--dry-run", a->dry_run,
+                "check the scenario and print its vehicles (a generated formation expanded, "
+                "each vehicle's graph depth) as a `vehicles:` list; fly nothing, write nothing");
   registry.push_back({sub, [a] { return Run(*a); }});
 }
 const RegisterCommand kRegistered(&Register);

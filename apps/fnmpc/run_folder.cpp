@@ -3,8 +3,12 @@
 
 #include <fmt/core.h>
 
+#include <atomic>
+#include <exception>
 #include <filesystem>
+#include <mutex>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 #include "apps/fnmpc/output_files.hpp"
@@ -30,34 +34,79 @@ nlohmann::json RunFolder(const config::ScenarioConfig& sc, const RunFolderOption
     std::filesystem::copy_file(options.scenario_file, PathInside(dir, "scenario.yaml"),
                                std::filesystem::copy_options::overwrite_existing);
   }
+  if (options.jobs < 1) {
+    throw std::invalid_argument("RunFolder: jobs must be >= 1, got " +
+                                std::to_string(options.jobs));
+  }
   const std::uint64_t seed0 =
       options.seed >= 0 ? static_cast<std::uint64_t>(options.seed) : sc.seed;
+  // Run r writes only run-NN/ and results[r]; the workers take the next run index. A run
+  // the simulator failed ends the folder after it, as with one job: later runs are not
+  // started, and those already flown are removed below.
+  std::vector<nlohmann::json> results(static_cast<std::size_t>(options.runs));
+  std::vector<char> done(results.size(), 0);
+  std::atomic<int> next{0};
+  std::atomic<int> first_failure{options.runs};
+  std::mutex print_mutex;
+  const auto fly = [&] {
+    for (int r = next++; r < options.runs && r < first_failure && !Stopped(options); r = next++) {
+      RunOptions o;
+      o.seed = seed0 + static_cast<std::uint64_t>(r);
+      o.progress = options.progress;
+      o.label = fmt::format("[{} run {}/{} seed {}]", sc.name, r + 1, options.runs, o.seed);
+      o.stop = options.stop;
+      nlohmann::json s = RunScenario(sc, o, fmt::format("{}/run-{:02d}", dir, r + 1));
+      s["dir"] = fmt::format("run-{:02d}", r + 1);
+      const std::lock_guard<std::mutex> lock(print_mutex);
+      if (s.contains("error")) {
+        if (r < first_failure) first_failure = r;  // written under the lock only
+        fmt::print(stderr, "fnmpc run: {}: simulation stopped: {}\n", s["dir"].get<std::string>(),
+                   s["error"].get<std::string>());
+      }
+      if (options.progress) {
+        fmt::print(stderr,
+                   "  {}steady-state formation error {:.4f} m, max {:.3f} m, solver max {:.2f} "
+                   "ms, fallbacks {}, landed safely {}\n",
+                   options.jobs > 1 ? o.label + " " : std::string(),
+                   NumberOr(s, "steady_state_formation_error_m", -1.0),
+                   NumberOr(s, "max_formation_error_m", -1.0),
+                   1e3 * NumberOr(s, "solver_time_max_s", -1e-3), s["fallbacks"].get<long>(),
+                   s["landed_safely"].get<bool>());
+      }
+      results[static_cast<std::size_t>(r)] = std::move(s);
+      done[static_cast<std::size_t>(r)] = 1;
+    }
+  };
+  std::exception_ptr error;  // the first exception of a worker, rethrown after the join
+  const auto worker = [&] {
+    try {
+      fly();
+    } catch (...) {
+      const std::lock_guard<std::mutex> lock(print_mutex);
+      if (!error) error = std::current_exception();
+      next = options.runs;  // no new runs
+    }
+  };
+  const int threads = std::min(options.jobs, options.runs);
+  if (threads == 1) {
+    worker();
+  } else {
+    std::vector<std::jthread> pool;
+    for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
+  }
+  if (error) std::rethrow_exception(error);
+  const bool sim_failed = first_failure < options.runs;
+  // The runs of the folder: from the first on, each done, up to the failed one.
   std::vector<nlohmann::json> runs;
-  bool sim_failed = false;
-  for (int r = 0; r < options.runs && !Stopped(options); ++r) {
-    RunOptions o;
-    o.seed = seed0 + static_cast<std::uint64_t>(r);
-    o.progress = options.progress;
-    o.label = fmt::format("[{} run {}/{} seed {}]", sc.name, r + 1, options.runs, o.seed);
-    o.stop = options.stop;
-    nlohmann::json s = RunScenario(sc, o, fmt::format("{}/run-{:02d}", dir, r + 1));
-    s["dir"] = fmt::format("run-{:02d}", r + 1);
-    if (s.contains("error")) {
-      sim_failed = true;
-      fmt::print(stderr, "fnmpc run: {}: simulation stopped: {}\n", s["dir"].get<std::string>(),
-                 s["error"].get<std::string>());
+  for (int r = 0; r < options.runs; ++r) {
+    const auto k = static_cast<std::size_t>(r);
+    if (done[k] == 0 || r > first_failure) {
+      // Flown after the failed run (or not at all): not part of the folder.
+      std::error_code ec;
+      if (done[k] != 0) std::filesystem::remove_all(fmt::format("{}/run-{:02d}", dir, r + 1), ec);
+      continue;
     }
-    runs.push_back(s);
-    if (options.progress) {
-      fmt::print(stderr,
-                 "  steady-state formation error {:.4f} m, max {:.3f} m, solver max {:.2f} ms, "
-                 "fallbacks {}, landed safely {}\n",
-                 NumberOr(s, "steady_state_formation_error_m", -1.0),
-                 NumberOr(s, "max_formation_error_m", -1.0),
-                 1e3 * NumberOr(s, "solver_time_max_s", -1e-3), s["fallbacks"].get<long>(),
-                 s["landed_safely"].get<bool>());
-    }
-    if (sim_failed) break;
+    runs.push_back(std::move(results[k]));
   }
   nlohmann::json summary = runs.empty() ? nlohmann::json::object() : AggregateRuns(runs);
   summary["scenario_file"] = options.scenario_file;

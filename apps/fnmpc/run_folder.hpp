@@ -15,6 +15,7 @@ namespace fnmpc::app {
 
 struct RunFolderOptions {
   int runs = 1;               ///< runs with seeds seed, seed + 1, ...
+  int jobs = 1;               ///< runs flown at the same time, one thread each (>= 1)
   std::int64_t seed = -1;     ///< first seed; < 0: the scenario's
   bool progress = false;      ///< progress and one result line per run on stderr
   std::string scenario_file;  ///< copied to <dir>/scenario.yaml when it names a file
@@ -23,11 +24,12 @@ struct RunFolderOptions {
   const volatile std::sig_atomic_t* stop = nullptr;
 };
 
-/// Runs the simulations into the existing folder `dir` and writes <dir>/summary.json
-/// atomically: AggregateRuns plus `scenario_file`, `runs_requested` and `complete` (false
-/// when stopped, when the simulator failed, which ends the folder after that run, or when
-/// fewer runs than requested were done). Returns that summary. Throws std::invalid_argument
-/// on runs < 1 and std::runtime_error when the folder cannot be written.
+/// Runs the simulations into the existing folder `dir` (up to `jobs` at a time; the folder
+/// and summary are the same as with one job: each run depends only on its seed) and writes
+/// <dir>/summary.json atomically: AggregateRuns plus `scenario_file`, `runs_requested` and
+/// `complete` (false when stopped, when the simulator failed, which ends the folder after that run,
+/// or when fewer runs than requested were done). Returns that summary. Throws std::invalid_argument
+/// on runs < 1 or jobs < 1 and std::runtime_error when the folder cannot be written.
 nlohmann::json RunFolder(const config::ScenarioConfig& scenario, const RunFolderOptions& options,
                          const std::string& dir);
 

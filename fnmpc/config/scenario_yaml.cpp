@@ -9,6 +9,7 @@
 #include "fnmpc/config/sensors_yaml.hpp"
 #include "fnmpc/config/text_file.hpp"
 #include "fnmpc/config/vehicle_yaml.hpp"
+#include "fnmpc/formation/formation_shape.hpp"
 
 namespace fnmpc::config {
 
@@ -298,35 +299,10 @@ ScenarioReality ParseReality(YamlMap m, double duration) {
   return r;
 }
 
-}  // namespace
-
-ScenarioConfig ParseScenario(YamlMap map) {
-  ScenarioConfig s;
-  s.file = map.file();
-  s.name = Identifier(map, "name");
-  s.description = map.String("description", "");
-  s.duration = Positive(map, "duration", s.duration);
-  if (s.duration > kMaxScenarioDuration) {
-    throw map.ErrorAt("duration", "must be <= " + std::to_string(kMaxScenarioDuration) +
-                                      " s, got " + std::to_string(s.duration));
-  }
-  {
-    const int seed = map.Int("seed", 1);
-    if (seed < 0) throw map.ErrorAt("seed", "must be >= 0");
-    s.seed = static_cast<std::uint64_t>(seed);
-  }
-  s.downwash = map.Bool("downwash", s.downwash);
-  s.battery_sag = map.Bool("battery_sag", s.battery_sag);
-  const std::string vehicle_file = Resolve(map, map.String("vehicle_file"));
-  const std::string sensors_file = Resolve(map, map.String("sensors_file", ""));
-  const model::VehicleParams default_params =
-      Referenced(map, "vehicle_file", [&] { return LoadVehicleFile(vehicle_file); });
-  const SensorsConfig default_sensors =
-      sensors_file.empty()
-          ? SensorsConfig{}
-          : Referenced(map, "sensors_file", [&] { return LoadSensorsFile(sensors_file); });
-
-  // ---- Vehicles.
+// `vehicles:`, one by one; neighbours by name.
+void ListedVehicles(YamlMap& map, const model::VehicleParams& default_params,
+                    const SensorsConfig& default_sensors, ScenarioConfig* scenario) {
+  ScenarioConfig& s = *scenario;
   std::vector<YamlMap> vmaps = map.MapList("vehicles");
   if (vmaps.size() < 2)
     throw map.ErrorAt("vehicles", "need at least two vehicles (a leader and a follower)");
@@ -428,6 +404,117 @@ ScenarioConfig ParseScenario(YamlMap map) {
       nm.Finish();
     }
     vmaps[i].Finish();
+  }
+}
+
+// `formation:`, expanded by formation::GenerateFormation: the leader is named `leader`,
+// the followers <prefix>1, <prefix>2, ... front to back.
+std::vector<ScenarioVehicle> GeneratedVehicles(YamlMap& fm,
+                                               const model::VehicleParams& default_params,
+                                               const SensorsConfig& default_sensors,
+                                               std::vector<std::string>* warnings) {
+  formation::FormationSpec spec;
+  const std::string shape = fm.String("shape");
+  if (!formation::ParseFormationShape(shape, &spec.shape))
+    throw fm.ErrorAt("shape", "must be wedge, line, grid or circle, got '" + shape + "'");
+  spec.count = fm.Int("count");
+  if (spec.count < 2 || spec.count > kMaxVehicles)
+    throw fm.ErrorAt("count", "must be 2 to " + std::to_string(kMaxVehicles) + ", got " +
+                                  std::to_string(spec.count));
+  spec.spacing = Positive(fm, "spacing", spec.spacing);
+  if (spec.spacing < 1.0) throw fm.ErrorAt("spacing", "must be >= 1 m");
+  spec.ties = fm.Int("ties", spec.ties);
+  if (spec.ties < 1 || spec.ties > formation::kMaxNeighbours)
+    throw fm.ErrorAt("ties", "must be 1 to " + std::to_string(formation::kMaxNeighbours) +
+                                 ", got " + std::to_string(spec.ties));
+  spec.columns = fm.Int("columns", 0);
+  if (spec.columns < 0 || spec.columns > spec.count)
+    throw fm.ErrorAt("columns", "must be 0 (automatic) to count");
+  if (fm.Has("columns") && spec.shape != formation::FormationShape::kGrid)
+    throw fm.ErrorAt("columns", "only for shape: grid");
+  if (fm.Has("origin")) {
+    const std::vector<double> origin = fm.Doubles("origin", 2);
+    spec.origin = Vec3(origin[0], origin[1], 0.0);
+  }
+  if (!spec.origin.allFinite()) throw fm.ErrorAt("origin", "must be finite");
+  const std::string prefix = fm.Has("prefix") ? Identifier(fm, "prefix") : std::string("f");
+  const std::string frame = fm.String("frame", "m");
+  if (frame != "m" && frame != "c")
+    throw fm.ErrorAt("frame", "must be 'm' or 'c', got '" + frame + "'");
+  const Vec3 bound =
+      Positive3(fm, "relative_position_bound", ScenarioVehicle{}.relative_position_bound);
+
+  const std::vector<formation::FormationSlot> slots = formation::GenerateFormation(spec);
+  std::vector<ScenarioVehicle> vehicles(slots.size());
+  for (std::size_t i = 0; i < slots.size(); ++i) {
+    ScenarioVehicle& v = vehicles[i];
+    v.name = i == 0 ? std::string("leader") : prefix + std::to_string(i);
+    v.leader = i == 0;
+    v.start = slots[i].start;
+    v.params = default_params;
+    v.sensors = default_sensors;
+    if (v.leader) continue;
+    v.frame_control = frame == "c";
+    v.relative_position_bound = bound;
+    for (const formation::FormationTie& t : slots[i].ties) {
+      ScenarioNeighbour n;
+      n.index = t.neighbour;
+      n.desired = t.desired;
+      v.neighbours.push_back(n);
+    }
+  }
+  for (ScenarioVehicle& v : vehicles) {
+    for (ScenarioNeighbour& n : v.neighbours) {
+      n.vehicle = vehicles[static_cast<std::size_t>(n.index)].name;
+      const double gap = n.desired.norm();
+      if (!v.sensors.relative.enabled || gap > v.sensors.relative.max_range) {
+        warnings->push_back(std::string(fm.ErrorAt("spacing", "").what()) + "neighbour '" +
+                            n.vehicle + "' of '" + v.name + "' is " + std::to_string(gap) +
+                            " m away, beyond the relative sensor's range");
+      }
+    }
+  }
+  return vehicles;
+}
+
+}  // namespace
+
+ScenarioConfig ParseScenario(YamlMap map) {
+  ScenarioConfig s;
+  s.file = map.file();
+  s.name = Identifier(map, "name");
+  s.description = map.String("description", "");
+  s.duration = Positive(map, "duration", s.duration);
+  if (s.duration > kMaxScenarioDuration) {
+    throw map.ErrorAt("duration", "must be <= " + std::to_string(kMaxScenarioDuration) +
+                                      " s, got " + std::to_string(s.duration));
+  }
+  {
+    const int seed = map.Int("seed", 1);
+    if (seed < 0) throw map.ErrorAt("seed", "must be >= 0");
+    s.seed = static_cast<std::uint64_t>(seed);
+  }
+  s.downwash = map.Bool("downwash", s.downwash);
+  s.battery_sag = map.Bool("battery_sag", s.battery_sag);
+  const std::string vehicle_file = Resolve(map, map.String("vehicle_file"));
+  const std::string sensors_file = Resolve(map, map.String("sensors_file", ""));
+  const model::VehicleParams default_params =
+      Referenced(map, "vehicle_file", [&] { return LoadVehicleFile(vehicle_file); });
+  const SensorsConfig default_sensors =
+      sensors_file.empty()
+          ? SensorsConfig{}
+          : Referenced(map, "sensors_file", [&] { return LoadSensorsFile(sensors_file); });
+
+  // ---- Vehicles: generated from `formation:` or listed one by one in `vehicles:`.
+  if (map.Has("formation")) {
+    if (map.Has("vehicles"))
+      throw map.ErrorAt("formation", "give either formation: or vehicles:, not both");
+    YamlMap fm = map.Map("formation");
+    s.vehicles = GeneratedVehicles(fm, default_params, default_sensors, &s.warnings);
+    s.leader = 0;
+    fm.Finish();
+  } else {
+    ListedVehicles(map, default_params, default_sensors, &s);
   }
   for (std::size_t i = 0; i < s.vehicles.size(); ++i) {
     for (std::size_t j = i + 1; j < s.vehicles.size(); ++j) {

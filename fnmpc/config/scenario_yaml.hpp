@@ -129,7 +129,7 @@ inline constexpr double kMaxScenarioDuration = 3600.0;  ///< [s] simulated
 inline constexpr int kMaxIntegratorSteps = 100;
 inline constexpr int kMaxLeaderMoves = 1000;
 inline constexpr int kMaxWaypoints = 1000;
-inline constexpr int kMaxVehicles = 32;
+inline constexpr int kMaxVehicles = 128;
 inline constexpr double kPhysicsStep = 0.001;  ///< the simulator's physics step [s]
 
 /// The whole scenario.

@@ -388,7 +388,13 @@ struct World::Impl {
     const int idx = mj_findFileVFS(vfs.get(), name);
     std::memcpy(vfs->filedata[idx], xml.data(), xml.size());
     std::array<char, 1000> err{};
-    m = mj_loadXML(name, vfs.get(), err.data(), static_cast<int>(err.size()));
+    {
+      // MuJoCo's XML compiler is not documented as thread-safe; worlds may be built from
+      // several threads (`fnmpc run --jobs`). Stepping needs no lock: each world owns its data.
+      static std::mutex compile_mutex;
+      const std::lock_guard<std::mutex> lock(compile_mutex);
+      m = mj_loadXML(name, vfs.get(), err.data(), static_cast<int>(err.size()));
+    }
     mj_deleteVFS(vfs.get());
     if (m == nullptr) throw std::runtime_error(std::string("[World] MuJoCo: ") + err.data());
     d = mj_makeData(m);

@@ -1,0 +1,106 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Issue #18 item 4: `fnmpc run --runs N --jobs J` flies runs in parallel threads and writes
+// the same run folder as --jobs 1 (each run depends only on its seed), wall-clock solver
+// timings aside.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "apps/fnmpc/run_folder.hpp"
+#include "apps/fnmpc/scenario_runner.hpp"
+#include "fnmpc/config/scenario_yaml.hpp"
+
+namespace fnmpc::app {
+namespace {
+
+using json = nlohmann::json;
+namespace fs = std::filesystem;
+
+// Wall-clock measurements differ between any two runs; everything else must not.
+bool IsTiming(const std::string& key) {
+  return key.rfind("solver_time", 0) == 0 || key.rfind("solver_cpu_time", 0) == 0 ||
+         key == "solver_steps_over_budget_share";
+}
+
+void DropTimings(json* j) {
+  if (j->is_object()) {
+    for (auto it = j->begin(); it != j->end();) {
+      if (IsTiming(it.key())) {
+        it = j->erase(it);
+      } else {
+        DropTimings(&it.value());
+        ++it;
+      }
+    }
+  } else if (j->is_array()) {
+    for (json& e : *j) DropTimings(&e);
+  }
+}
+
+json Summary(const std::string& path) {
+  std::ifstream f(path);
+  json j = json::parse(f);
+  DropTimings(&j);
+  return j;
+}
+
+// A CSV without its timing columns, as text.
+std::string CsvWithoutTimings(const std::string& path) {
+  std::ifstream f(path);
+  std::string line, out;
+  std::vector<bool> keep;
+  while (std::getline(f, line)) {
+    std::stringstream cells(line);
+    std::string cell;
+    std::size_t c = 0;
+    const bool header = keep.empty();
+    while (std::getline(cells, cell, ',')) {
+      if (header) keep.push_back(!IsTiming(cell));
+      if (c < keep.size() && keep[c]) out += cell + ",";
+      ++c;
+    }
+    out += "\n";
+  }
+  return out;
+}
+
+TEST(RunJobsTest, ParallelRunsWriteTheSameFolderAsOneJob) {
+  // Given the triangle shortened to 10 s, three runs,
+  config::ScenarioConfig sc =
+      config::LoadScenarioFile(std::string(FNMPC_SOURCE_DIR) + "/config/scenarios/triangle.yaml");
+  sc = Shortened(sc, 10.0);
+  const std::string base = testing::TempDir() + "/fnmpc-jobs-" + std::to_string(getpid());
+  fs::remove_all(base);
+  RunFolderOptions o;
+  o.runs = 3;
+  o.seed = 5;
+  // when flown with one job and with three,
+  o.jobs = 1;
+  const json one = RunFolder(sc, o, base + "/one");
+  o.jobs = 3;
+  const json three = RunFolder(sc, o, base + "/three");
+  // then both summaries and every CSV agree, timings aside.
+  ASSERT_EQ(one["runs"].get<int>(), 3);
+  EXPECT_EQ(Summary(base + "/one/summary.json"), Summary(base + "/three/summary.json"));
+  int csvs = 0;
+  for (const auto& e : fs::recursive_directory_iterator(base + "/one")) {
+    if (e.path().extension() != ".csv") continue;
+    const std::string rel = fs::relative(e.path(), base + "/one").string();
+    ASSERT_TRUE(fs::exists(base + "/three/" + rel)) << rel;
+    EXPECT_EQ(CsvWithoutTimings(e.path().string()), CsvWithoutTimings(base + "/three/" + rel))
+        << rel;
+    ++csvs;
+  }
+  EXPECT_EQ(csvs, 9);  // 3 runs x 3 vehicles
+  o.jobs = 0;
+  EXPECT_THROW(RunFolder(sc, o, base + "/zero"), std::invalid_argument);
+  fs::remove_all(base);
+}
+
+}  // namespace
+}  // namespace fnmpc::app
