@@ -37,11 +37,13 @@ struct FormationSlot {
 };
 
 /// Places the vehicles of `spec` and ties them. The leader (slot 0) is at `origin`, the
-/// formation extends behind it (-x), and slots are numbered front to back. Each follower
-/// ties to its `ties` nearest vehicles among the slots numbered before it (equal distances:
-/// the lower slot first), so every tie points towards the leader and the tie graph has no
-/// cycle; a follower with fewer earlier slots than `ties` gets as many as exist. The
-/// desired offsets are the start geometry. Throws std::invalid_argument on a bad spec.
+/// formation extends behind it (-x), and slots are numbered front to back. Slots are ranked
+/// (wedge and line: row; grid: row + column from the leader's corner; circle: leader 0, ring
+/// 1). A follower's first tie is its nearest slot of a lower rank, so a chain of ties leads
+/// to the leader; its further ties are its nearest slots of lower or equal rank, never one
+/// behind it (equal distances: the lower slot first); with fewer candidates than `ties` it
+/// gets as many as exist. The desired offsets are the start geometry. Throws
+/// std::invalid_argument on a bad spec.
 std::vector<FormationSlot> GenerateFormation(const FormationSpec& spec);
 
 }  // namespace fnmpc::formation
