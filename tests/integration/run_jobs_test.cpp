@@ -70,10 +70,10 @@ std::string CsvWithoutTimings(const std::string& path) {
 }
 
 TEST(RunJobsTest, ParallelRunsWriteTheSameFolderAsOneJob) {
-  // Given the triangle shortened to 10 s, three runs,
+  // Given the triangle shortened to 25 s (take-off, one leg, landing), three runs,
   config::ScenarioConfig sc =
       config::LoadScenarioFile(std::string(FNMPC_SOURCE_DIR) + "/config/scenarios/triangle.yaml");
-  sc = Shortened(sc, 10.0);
+  sc = Shortened(sc, 25.0);
   const std::string base = testing::TempDir() + "/fnmpc-jobs-" + std::to_string(getpid());
   fs::remove_all(base);
   RunFolderOptions o;
