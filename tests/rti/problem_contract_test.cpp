@@ -196,8 +196,11 @@ TEST(ProblemContractTest, SettersRejectBadArgumentsAtSetup) {
   EXPECT_THROW(solver.SetStateBounds(0, lb, ub), std::out_of_range);  // x_0 is fixed
   EXPECT_THROW(solver.SetStateBounds(6, lb, ub), std::out_of_range);
   EXPECT_THROW(solver.SetParameters(6, PointMass::Params{}), std::out_of_range);
+  EXPECT_THROW(solver.SetInputBounds(-1, Vec<1>(-1), Vec<1>(1)), std::out_of_range);
+  EXPECT_THROW(solver.SetParameters(-1, PointMass::Params{}), std::out_of_range);
   try {
     solver.SetReference(7, Vec<3>::Zero());
+    ADD_FAILURE() << "SetReference(7) accepted";
   } catch (const std::out_of_range& e) {
     EXPECT_NE(std::string(e.what()).find("SetReference: stage 7 outside 0..4"), std::string::npos)
         << e.what();
@@ -207,12 +210,41 @@ TEST(ProblemContractTest, SettersRejectBadArgumentsAtSetup) {
   EXPECT_THROW(solver.SetWeights(Vec<3>::Ones(), Vec<2>(1.0, kNaN)), std::invalid_argument);
   EXPECT_THROW(solver.SetWeightValues(Vec<3>(kNaN, 1.0, 1.0), Vec<2>::Ones()),
                std::invalid_argument);
+  EXPECT_THROW(solver.SetWeights(Vec<3>(1.0, kInf, 1.0), Vec<2>::Ones()), std::invalid_argument);
+  try {
+    solver.SetWeights(Vec<3>::Ones(), Vec<2>(1.0, -2.0));
+    ADD_FAILURE() << "negative terminal weight accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("SetWeights: terminal weight 1 must be finite and >= 0"),
+              std::string::npos)
+        << e.what();
+  }
+  // and a weight on a row outside the pattern of the last SetWeights (it would need new
+  // sparsity patterns, which SetWeightValues does not build)
+  solver.SetWeights(Vec<3>(0.0, 1.0, 1.0), Vec<2>::Ones());
+  EXPECT_THROW(solver.SetWeightValues(Vec<3>(1.0, 1.0, 1.0), Vec<2>::Ones()),
+               std::invalid_argument);
+  EXPECT_NO_THROW(solver.SetWeightValues(Vec<3>(0.0, 2.0, 0.0), Vec<2>::Ones()));
   // while the ends of each range are accepted
   EXPECT_NO_THROW(solver.SetReference(4, Vec<3>::Zero()));
   EXPECT_NO_THROW(solver.SetStateBounds(5, lb, ub));
   EXPECT_NO_THROW(solver.SetParameters(0, PointMass::Params{}));
   EXPECT_NO_THROW(solver.SetParameters(5, PointMass::Params{}));
   EXPECT_NO_THROW(solver.SetWeights(Vec<3>(0.0, 1.0, 1.0), Vec<2>::Ones()));
+}
+
+TEST(ProblemContractTest, ConstructorRejectsABadStateBoundLayout) {
+  // Given a layout with a state index outside 0..nx-1, or soft flags not matching the indices
+  // Then construction is refused
+  EXPECT_THROW(RtiSolver<PointMass>(PointMass{}, Settings(5, 0.1), StateBoundLayout{{2}, {false}}),
+               std::invalid_argument);
+  EXPECT_THROW(RtiSolver<PointMass>(PointMass{}, Settings(5, 0.1), StateBoundLayout{{-1}, {false}}),
+               std::invalid_argument);
+  EXPECT_THROW(RtiSolver<PointMass>(PointMass{}, Settings(5, 0.1), StateBoundLayout{{1}, {}}),
+               std::invalid_argument);
+  // and a valid soft layout is accepted
+  EXPECT_NO_THROW(
+      RtiSolver<PointMass>(PointMass{}, Settings(5, 0.1), StateBoundLayout{{1}, {true}}));
 }
 
 }  // namespace
