@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "apps/fnmpc/run_log.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
 #include "fnmpc/formation/trajectory.hpp"
 #include "fnmpc/formation/vehicle_controller.hpp"
@@ -16,18 +17,6 @@
 /// Closed loop of a formation scenario: MuJoCo World (1 ms physics, all sensors) plus one
 /// formation::VehicleController per flying vehicle (every Ts), CSV logs and metrics.
 namespace fnmpc::app {
-
-/// Header line of the per-vehicle CSV log (`<vehicle>.csv`) that `fnmpc run` writes and
-/// `fnmpc report` reads; shared with the ROS bag converter so both write the same columns.
-inline constexpr const char* kVehicleLogCsvHeader =
-    "t,phase,x,y,z,vx,vy,vz,roll,pitch,yaw,est_x,est_y,est_z,est_vx,est_vy,est_vz,"
-    "est_roll,est_pitch,est_yaw,cmd_thrust,cmd_throttle,cmd_roll,cmd_pitch,cmd_yaw,"
-    "nmpc_thrust,nmpc_roll,nmpc_pitch,ref_x,ref_y,ref_z,tracking_error,"
-    "rel0_x,rel0_y,rel0_z,est_rel0_x,est_rel0_y,est_rel0_z,err0,"
-    "rel1_x,rel1_y,rel1_z,est_rel1_x,est_rel1_y,est_rel1_z,err1,formation_error,"
-    "steady,cost,kkt,solver_time,solver_cpu_time,sqp_iterations,qp_iterations,"
-    "fallback,status,guarded,estimator_rejections,voltage,voltage_measured,"
-    "recovery,recovery_reason,active_neighbours,aero_fx,aero_fy,aero_fz\n";
 
 /// Scenario -> library objects: the one mapping used by `fnmpc run` and by the ROS nodes
 /// (ros/fnmpc_ros), so both fly the same controllers in the same world.

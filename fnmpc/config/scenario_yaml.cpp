@@ -7,6 +7,7 @@
 #include <map>
 
 #include "fnmpc/config/sensors_yaml.hpp"
+#include "fnmpc/config/settings_yaml.hpp"
 #include "fnmpc/config/text_file.hpp"
 #include "fnmpc/config/vehicle_yaml.hpp"
 #include "fnmpc/formation/formation_shape.hpp"
@@ -78,26 +79,6 @@ int IntIn(YamlMap& m, const std::string& key, int fallback, int lo, int hi) {
                              "], got " + std::to_string(v));
   }
   return v;
-}
-
-ScenarioWeights ParseWeights(YamlMap m) {
-  ScenarioWeights w;
-  auto nonneg3 = [&m](const std::string& key, const Vec3& fallback) {
-    const Vec3 v = m.Vector3(key, fallback);
-    if (!(v.array() >= 0.0).all()) throw m.ErrorAt(key, "weights must be >= 0");
-    return v;
-  };
-  w.position = nonneg3("position", w.position);
-  w.velocity = nonneg3("velocity", w.velocity);
-  w.attitude = NonNegative(m, "attitude", w.attitude);
-  w.thrust = Positive(m, "thrust", w.thrust);
-  w.attitude_ref = Positive(m, "attitude_ref", w.attitude_ref);
-  w.terminal_factor = NonNegative(m, "terminal_factor", w.terminal_factor);
-  w.thrust_rate = NonNegative(m, "thrust_rate", w.thrust_rate);
-  w.attitude_ref_rate = NonNegative(m, "attitude_ref_rate", w.attitude_ref_rate);
-  w.collision = NonNegative(m, "collision", w.collision);
-  m.Finish();
-  return w;
 }
 
 /// Index of the vehicle named by `key` of `m`; an error at that key when unknown.
@@ -481,6 +462,9 @@ std::vector<ScenarioVehicle> GeneratedVehicles(YamlMap& fm,
 
 ScenarioConfig ParseScenario(YamlMap map) {
   ScenarioConfig s;
+  // The settings structs' keys (ScenarioConfig::Serialize); the blocks they share with
+  // hand-parsed keys (leader) are opened through the reader.
+  SettingsReader reader(&map);
   s.file = map.file();
   s.name = Identifier(map, "name");
   s.description = map.String("description", "");
@@ -527,9 +511,8 @@ ScenarioConfig ParseScenario(YamlMap map) {
 
   // ---- Leader motion.
   {
-    YamlMap lm = map.Map("leader");
+    YamlMap& lm = reader.Required("leader");
     s.leader_mode = lm.String("mode");
-    s.trajectory_start = Positive(lm, "start_time", s.trajectory_start);
     if (s.leader_mode == "waypoints") {
       YAML::Node wp = lm.Node("waypoints");
       if (!wp.IsSequence() || wp.size() < 2)
@@ -573,82 +556,44 @@ ScenarioConfig ParseScenario(YamlMap map) {
     } else {
       throw lm.ErrorAt("mode", "must be 'waypoints' or 'manual', got '" + s.leader_mode + "'");
     }
-    lm.Finish();
   }
 
-  // ---- Controller.
-  if (map.Has("controller")) {
-    YamlMap cm = map.Map("controller");
-    s.sample_time = Positive(cm, "sample_time", s.sample_time);
-    {
-      // The controller runs every round(sample_time / physics step) physics steps, so any
-      // other value would silently fly a different sample time than the model's.
-      const double ratio = s.sample_time / kPhysicsStep;
-      if (std::abs(ratio - std::round(ratio)) > 1e-6 || s.sample_time > 1.0) {
-        throw cm.ErrorAt("sample_time",
-                         "must be a multiple of the 0.001 s physics step in "
-                         "[0.001, 1] s, got " +
-                             std::to_string(s.sample_time));
-      }
+  // ---- Controller, phases, safety, weights, metrics, envelope: the settings structs.
+  reader.Read(&s);
+  formation::ControllerSettings& c = s;
+  if (YamlMap* cm = reader.At("controller")) {
+    // The controller runs every round(sample_time / physics step) physics steps, so any
+    // other value would silently fly a different sample time than the model's.
+    const double ratio = c.rti.sample_time / kPhysicsStep;
+    if (std::abs(ratio - std::round(ratio)) > 1e-6 || c.rti.sample_time > 1.0) {
+      throw cm->ErrorAt("sample_time",
+                        "must be a multiple of the 0.001 s physics step in "
+                        "[0.001, 1] s, got " +
+                            std::to_string(c.rti.sample_time));
     }
-    s.horizon = cm.Int("horizon", s.horizon);
-    if (s.horizon < 1 || s.horizon > 100) throw cm.ErrorAt("horizon", "must be in [1, 100]");
-    s.integrator_steps = IntIn(cm, "integrator_steps", s.integrator_steps, 1, kMaxIntegratorSteps);
-    s.max_iterations = IntIn(cm, "max_iterations", s.max_iterations, 1, 100);
-    s.max_initial_iterations =
-        IntIn(cm, "max_initial_iterations", s.max_initial_iterations, 1, 1000);
-    s.kkt_threshold = Positive(cm, "kkt_threshold", s.kkt_threshold);
-    s.cpu_budget = Positive(cm, "cpu_budget", s.sample_time);
-    s.use_throttle = cm.Bool("use_throttle", s.use_throttle);
-    if (cm.Has("bounds")) {
-      YamlMap bm = cm.Map("bounds");
-      if (bm.Has("thrust")) {
-        const std::vector<double> t = bm.Doubles("thrust", 2);
-        if (!(t[0] >= 0.0 && t[1] > t[0]))
-          throw bm.ErrorAt("thrust", "must be [min, max] with 0 <= min < max");
-        s.thrust_min = t[0];
-        s.thrust_max = t[1];
-        // The collective thrust bounds [N] must bracket every vehicle's weight with margin, or
-        // the vehicles cannot take off (or cannot descend).
-        for (const ScenarioVehicle& v : s.vehicles) {
-          const double weight = v.params.mass * kPlausibleGravity;
-          if (!(s.thrust_max >= kThrustMargin * weight && s.thrust_min < weight)) {
-            throw bm.ErrorAt("thrust", "[min, max] = [" + std::to_string(t[0]) + ", " +
-                                           std::to_string(t[1]) +
-                                           "] N must satisfy min < m g and "
-                                           "max >= " +
-                                           std::to_string(kThrustMargin) + " m g for vehicle '" +
-                                           v.name + "' (m g = " + std::to_string(weight) + " N)");
-          }
-        }
-      }
-      s.max_attitude_ref = Positive(bm, "attitude_ref", s.max_attitude_ref);
-      if (s.max_attitude_ref >= 1.2) throw bm.ErrorAt("attitude_ref", "must be < 1.2 rad");
-      s.max_speed = Positive(bm, "speed", s.max_speed);
-      bm.Finish();
-    }
-    if (cm.Has("weights")) {
-      YamlMap wm = cm.Map("weights");
-      if (wm.Has("leader")) s.leader_weights = ParseWeights(wm.Map("leader"));
-      if (wm.Has("follower")) s.follower_weights = ParseWeights(wm.Map("follower"));
-      wm.Finish();
-    }
-    cm.Finish();
   }
+  // Algorithm 1's budget is one sample time unless given.
+  if (YamlMap* cm = reader.At("controller"); cm == nullptr || !cm->Has("cpu_budget"))
+    c.rti.cpu_budget = c.rti.sample_time;
+  if (YamlMap* bm = reader.At("controller.bounds"); bm != nullptr && bm->Has("thrust")) {
+    // The collective thrust bounds [N] must bracket every vehicle's weight with margin, or
+    // the vehicles cannot take off (or cannot descend).
+    for (const ScenarioVehicle& v : s.vehicles) {
+      const double weight = v.params.mass * kPlausibleGravity;
+      if (!(c.thrust_max >= kThrustMargin * weight && c.thrust_min < weight)) {
+        throw bm->ErrorAt("thrust", "[min, max] = [" + std::to_string(c.thrust_min) + ", " +
+                                        std::to_string(c.thrust_max) +
+                                        "] N must satisfy min < m g and "
+                                        "max >= " +
+                                        std::to_string(kThrustMargin) + " m g for vehicle '" +
+                                        v.name + "' (m g = " + std::to_string(weight) + " N)");
+      }
+    }
+  }
+  if (YamlMap* sm = reader.At("safety");
+      sm != nullptr && !(c.safety.max_altitude > c.safety.min_altitude))
+    throw sm->ErrorAt("max_altitude", "must be above min_altitude");
 
-  // ---- Phases.
-  if (map.Has("phases")) {
-    YamlMap pm = map.Map("phases");
-    s.takeoff_time = NonNegative(pm, "takeoff_time", s.takeoff_time);
-    s.takeoff_height = Positive(pm, "takeoff_height", s.takeoff_height);
-    if (s.takeoff_height < 0.3) throw pm.ErrorAt("takeoff_height", "must be >= 0.3 m");
-    s.climb_speed = Positive(pm, "climb_speed", s.climb_speed);
-    s.hover_before_switch = NonNegative(pm, "hover_before_switch", s.hover_before_switch);
-    s.blend_time = NonNegative(pm, "blend_time", s.blend_time);
-    s.landing_time = Positive(pm, "landing_time", s.landing_time);
-    s.descent_speed = Positive(pm, "descent_speed", s.descent_speed);
-    pm.Finish();
-  }
   if (!(s.landing_time > s.trajectory_start && s.landing_time < s.duration)) {
     throw map.ErrorAt(map.Has("phases") ? "phases" : "duration",
                       "phases.landing_time must lie between leader.start_time and duration");
@@ -664,50 +609,12 @@ ScenarioConfig ParseScenario(YamlMap map) {
     }
   }
 
-  // ---- Safety (formation::SafetyConfig, defaults there).
-  if (map.Has("safety")) {
-    YamlMap sm = map.Map("safety");
-    formation::SafetyConfig& f = s.safety;
-    f.min_altitude = NonNegative(sm, "min_altitude", f.min_altitude);
-    f.max_altitude = Positive(sm, "max_altitude", f.max_altitude);
-    if (!(f.max_altitude > f.min_altitude))
-      throw sm.ErrorAt("max_altitude", "must be above min_altitude");
-    f.neighbour_timeout = Positive(sm, "neighbour_timeout", f.neighbour_timeout);
-    f.neighbour_reacquire_time =
-        NonNegative(sm, "neighbour_reacquire_time", f.neighbour_reacquire_time);
-    f.collision_radius = NonNegative(sm, "collision_radius", f.collision_radius);
-    if (f.collision_radius > 10.0) throw sm.ErrorAt("collision_radius", "must be <= 10 m");
-    if (sm.Has("recovery")) {
-      YamlMap rm = sm.Map("recovery");
-      formation::RecoveryConfig& r = f.recovery;
-      r.fallbacks_before_reinit = rm.Int("fallbacks_before_reinit", r.fallbacks_before_reinit);
-      if (r.fallbacks_before_reinit < 1 || r.fallbacks_before_reinit > 1000)
-        throw rm.ErrorAt("fallbacks_before_reinit", "must be in [1, 1000]");
-      r.max_reinitialisations = rm.Int("max_reinitialisations", r.max_reinitialisations);
-      if (r.max_reinitialisations < 0 || r.max_reinitialisations > 1000)
-        throw rm.ErrorAt("max_reinitialisations", "must be in [0, 1000]");
-      r.estimate_timeout = Positive(rm, "estimate_timeout", r.estimate_timeout);
-      r.failsafe_hold_time = NonNegative(rm, "failsafe_hold_time", r.failsafe_hold_time);
-      r.failsafe_descent_speed = Positive(rm, "failsafe_descent_speed", r.failsafe_descent_speed);
-      if (r.failsafe_descent_speed > 1.5)
-        throw rm.ErrorAt("failsafe_descent_speed", "must be <= 1.5 m/s");
-      rm.Finish();
-    }
-    sm.Finish();
-  }
-
   // ---- Reality (after the duration its gust times refer to).
   if (map.Has("reality")) s.reality = ParseReality(map.Map("reality"), s.duration);
 
   // ---- Faults (after the vehicles, the leader mode and the duration they refer to).
   if (map.Has("faults")) s.faults = ParseFaults(map.Map("faults"), s);
 
-  if (map.Has("envelope")) {
-    YamlMap em = map.Map("envelope");
-    s.envelope.max_altitude = Positive(em, "max_altitude", s.envelope.max_altitude);
-    s.envelope.max_distance = Positive(em, "max_distance", s.envelope.max_distance);
-    em.Finish();
-  }
   {
     // The leader flies its NMPC on its own absolute position: without motion capture it can
     // only dead-reckon (a test of that may be meant, so this is a warning).
@@ -720,13 +627,7 @@ ScenarioConfig ParseScenario(YamlMap map) {
     }
   }
 
-  if (map.Has("metrics")) {
-    YamlMap mm = map.Map("metrics");
-    s.settle_time = NonNegative(mm, "settle_time", s.settle_time);
-    s.touchdown_speed_max = Positive(mm, "touchdown_speed_max", s.touchdown_speed_max);
-    s.max_tilt_landed = Positive(mm, "max_tilt_landed", s.max_tilt_landed);
-    mm.Finish();
-  }
+  reader.Finish();
   map.Finish();
   return s;
 }
@@ -749,6 +650,13 @@ void CheckDurationFlag(const ScenarioConfig& s, double duration) {
                       std::to_string(s.duration) + " s of " + s.file + "), got " +
                       std::to_string(duration));
   }
+}
+
+std::vector<SettingDoc> ScenarioSettingsDocs() {
+  ScenarioConfig defaults;
+  SettingsDocWriter writer;
+  writer.Read(&defaults);
+  return writer.fields();
 }
 
 ScenarioConfig LoadScenarioFile(const std::string& path) {

@@ -5,9 +5,11 @@
 #include <string>
 #include <vector>
 
+#include "fnmpc/config/settings_doc.hpp"
 #include "fnmpc/config/yaml_reader.hpp"
 #include "fnmpc/core/sensors.hpp"
 #include "fnmpc/core/types.hpp"
+#include "fnmpc/formation/controller_settings.hpp"
 #include "fnmpc/formation/neighbour_limits.hpp"
 #include "fnmpc/formation/nmpc_weights.hpp"
 #include "fnmpc/formation/recovery.hpp"
@@ -120,9 +122,45 @@ struct ScenarioFaults {
 /// The flight envelope a run is judged against (block `envelope:`): a vehicle above
 /// max_altitude or farther than max_distance (horizontally) from its start fails the run.
 struct FlightEnvelope {
-  double max_altitude = 5.0;   ///< [m] above the ground
-  double max_distance = 20.0;  ///< [m] horizontal distance from the vehicle's start
+  double max_altitude = 5.0;
+  double max_distance = 20.0;
+
+  template <class Archive>
+  void Serialize(Archive* a) {
+    a->Visit("max_altitude", &max_altitude, fnmpc::Positive(),
+             "[m] above the ground; a vehicle above it at any control step fails the run "
+             "(`failures` in summary.json, exit code 3, docs/failure.md)");
+    a->Visit("max_distance", &max_distance, fnmpc::Positive(),
+             "[m] horizontal distance from the vehicle's start, likewise; the defaults are the "
+             "limits of the safety campaign (docs/safety.md)");
+  }
 };
+
+/// How a run is judged (block `metrics:`).
+struct RunCriteria {
+  double settle_time = 3.0;
+  double touchdown_speed_max = 0.6;
+  double max_tilt_landed = 0.3;
+
+  template <class Archive>
+  void Serialize(Archive* a) {
+    a->Visit("settle_time", &settle_time, fnmpc::NonNegative(),
+             "[s] steady state: the leader's reference has been at rest at least this long");
+    a->Visit("touchdown_speed_max", &touchdown_speed_max, fnmpc::Positive(),
+             "[m/s] landed safely: |v_z| at touchdown below this");
+    a->Visit("max_tilt_landed", &max_tilt_landed, fnmpc::Positive(),
+             "[rad] landed safely: final tilt below this");
+  }
+};
+
+/// The scenario's defaults of the controllers' shared settings where they differ from
+/// formation::ControllerSettings' own: the leader's first leg at 12 s, landing at 50 s.
+inline formation::ControllerSettings ScenarioControllerDefaults() {
+  formation::ControllerSettings c;
+  c.trajectory_start = 12.0;
+  c.landing_time = 50.0;
+  return c;
+}
 
 /// Upper bounds on the work a scenario may ask for (docs/failure.md, "Limits").
 inline constexpr double kMaxScenarioDuration = 3600.0;  ///< [s] simulated
@@ -132,8 +170,13 @@ inline constexpr int kMaxWaypoints = 1000;
 inline constexpr int kMaxVehicles = 128;
 inline constexpr double kPhysicsStep = 0.001;  ///< the simulator's physics step [s]
 
-/// The whole scenario.
-struct ScenarioConfig {
+/// The whole scenario. It extends the settings every vehicle's controller shares
+/// (formation::ControllerSettings: keys controller.*, phases.*, safety.*, leader.start_time),
+/// with the scenario's own defaults (ScenarioControllerDefaults); ControllerConfigFor adds
+/// what is each vehicle's own.
+struct ScenarioConfig : formation::ControllerSettings {
+  ScenarioConfig() : formation::ControllerSettings(ScenarioControllerDefaults()) {}
+
   std::string name;
   std::string description;
   std::string file;        ///< path it was read from
@@ -146,38 +189,32 @@ struct ScenarioConfig {
   int leader = -1;  ///< index of the leader
   // Leader motion.
   std::string leader_mode = "waypoints";  ///< "waypoints" (NMPC) or "manual" (moved by hand)
-  double trajectory_start = 12.0;         ///< [s]
   std::vector<Vec3> waypoints;            ///< offsets from the hover point [m]
   double leg_duration = 4.0, hold_duration = 4.0;  ///< [s]
   Vec3 walk_box{1.15, 1.15, 1.15};                 ///< manual: box size [m] (1.5 m^3)
   int walk_moves = 8;
   double walk_min_leg = 1.5, walk_max_leg = 3.0, walk_min_hold = 3.0, walk_max_hold = 5.0;
-  Vec3 manual_start{0.0, 0.0, 1.0};  ///< manual: leader held at this position [m]
-  // Controller.
-  double sample_time = 0.05;
-  int horizon = 15;
-  int integrator_steps = 2;
-  int max_iterations = 1;
-  int max_initial_iterations = 50;
-  double kkt_threshold = 1e-6;
-  double cpu_budget = 0.05;
-  ScenarioWeights leader_weights, follower_weights;
-  double thrust_min = 5.0, thrust_max = 25.0, max_attitude_ref = 0.35, max_speed = 2.0;
-  bool use_throttle = true;
-  formation::SafetyConfig safety;  ///< block `safety:` (see formation::SafetyConfig)
-  ScenarioFaults faults;           ///< block `faults:` (fault injection of `fnmpc run`)
-  // Phases.
-  double takeoff_time = 1.0, takeoff_height = 1.0, climb_speed = 0.5, hover_before_switch = 1.5;
-  double blend_time = 0.5, landing_time = 50.0, descent_speed = 0.3;
-  // Metrics.
-  double settle_time = 3.0;          ///< steady state: reference stopped at least this long [s]
-  double touchdown_speed_max = 0.6;  ///< landed safely: |vz| at touchdown below [m/s]
-  double max_tilt_landed = 0.3;      ///< landed safely: final tilt below [rad]
-  FlightEnvelope envelope;           ///< block `envelope:`
+  Vec3 manual_start{0.0, 0.0, 1.0};                  ///< manual: leader held at this position [m]
+  ScenarioWeights leader_weights, follower_weights;  ///< the controllers' weights by role
+  ScenarioFaults faults;    ///< block `faults:` (fault injection of `fnmpc run`)
+  RunCriteria metrics;      ///< block `metrics:`
+  FlightEnvelope envelope;  ///< block `envelope:`
   /// Things a user may mean but should know (a leader without motion capture, a neighbour
   /// out of sensor reach at the start), "file:line:column: key '...': what"; printed by
   /// `fnmpc run` and recorded in summary.json.
   std::vector<std::string> warnings;
+
+  /// The scenario's settings that map onto settings structs, with their keys (the rest of
+  /// the file, vehicles, leader motion, reality and faults, is parsed by ParseScenario).
+  /// docs/scenarios.md's settings table is generated from this (ScenarioSettingsDocs).
+  template <class Archive>
+  void Serialize(Archive* a) {
+    formation::ControllerSettings::Serialize(a);
+    a->Nested("controller.weights.leader", &leader_weights);
+    a->Nested("controller.weights.follower", &follower_weights);
+    a->Nested("metrics", &metrics);
+    a->Nested("envelope", &envelope);
+  }
 };
 
 /// Reads and validates a scenario file; relative file paths (vehicle_file, sensors_file)
@@ -185,6 +222,10 @@ struct ScenarioConfig {
 /// file:line:column and the key on unknown keys, missing keys and bad values.
 ScenarioConfig LoadScenarioFile(const std::string& path);
 ScenarioConfig ParseScenario(YamlMap map);
+
+/// Every key of ScenarioConfig::Serialize with its default, accepted values and meaning:
+/// the source of docs/scenarios.md's settings table (checked by scenario_settings_doc_test).
+std::vector<SettingDoc> ScenarioSettingsDocs();
 
 /// Effective landing time of vehicle i [s] (its own or the scenario's).
 double LandingTime(const ScenarioConfig& s, int i);

@@ -5,6 +5,8 @@
 #include <cstdint>
 #include <string_view>
 
+#include "fnmpc/core/serialize.hpp"
+
 /// The NMPC's recovery ladder, after PX4's failsafe state machine: explicit states and
 /// transitions, each with a reason, decided from per-step facts only (no solver, no
 /// estimator inside), so that it is tested on its own.
@@ -19,11 +21,26 @@ namespace fnmpc::formation {
 
 /// Settings of the recovery ladder and the failsafe controller.
 struct RecoveryConfig {
-  int fallbacks_before_reinit = 3;      ///< K: consecutive fallbacks that trigger a re-init
-  int max_reinitialisations = 2;        ///< re-inits without a success in between, then failsafe
-  double estimate_timeout = 0.5;        ///< T: estimate unusable this long -> failsafe [s]
-  double failsafe_hold_time = 1.0;      ///< level hover at the failsafe altitude [s]
-  double failsafe_descent_speed = 0.4;  ///< failsafe descent rate [m/s]
+  int fallbacks_before_reinit = 3;
+  int max_reinitialisations = 2;
+  double estimate_timeout = 0.5;
+  double failsafe_hold_time = 1.0;
+  double failsafe_descent_speed = 0.4;
+
+  /// Every field with its key (scenario block `safety.recovery:`) and meaning.
+  template <class Archive>
+  void Serialize(Archive* a) {
+    a->Visit("fallbacks_before_reinit", &fallbacks_before_reinit, IntIn(1, 1000).Quiet(),
+             "K consecutive fallbacks re-initialise the solver from the current estimate");
+    a->Visit("max_reinitialisations", &max_reinitialisations, IntIn(0, 1000).Quiet(),
+             "re-initialisations without a successful step in between before the failsafe");
+    a->Visit("estimate_timeout", &estimate_timeout, Positive(),
+             "[s] no usable estimate this long hands over to the failsafe");
+    a->Visit("failsafe_hold_time", &failsafe_hold_time, NonNegative(),
+             "[s] failsafe: level hover at the current height before descending");
+    a->Visit("failsafe_descent_speed", &failsafe_descent_speed, Positive().AtMost(1.5, "m/s"),
+             "[m/s] failsafe descent rate");
+  }
 
   /// Throws std::invalid_argument naming the field on an invalid value.
   void Validate() const;
@@ -31,18 +48,33 @@ struct RecoveryConfig {
 
 /// Safety settings of one vehicle's controller (scenario block `safety:`).
 struct SafetyConfig {
-  /// Soft bounds on the height of the CoM above the ground plane in the NMPC phase [m]
-  /// (leader: its position state; follower: its displacement from the current height).
   double min_altitude = 0.3, max_altitude = 10.0;
-  /// A follower's neighbour with no accepted relative measurement for this long leaves the
-  /// cost [s]; it returns after measurements were accepted for `neighbour_reacquire_time`
-  /// with no gap longer than that.
   double neighbour_timeout = 1.0;
   double neighbour_reacquire_time = 0.5;
-  /// Minimum CoM distance kept to every sensed vehicle (soft constraint in the OCP) [m]:
-  /// twice the reference vehicle's arm length (0.225 m), rotor hubs apart. 0: off.
   double collision_radius = 0.45;
   RecoveryConfig recovery;
+
+  /// The fields a scenario sets (block `safety:`), with their meaning; the fault injection
+  /// below is set by the `faults:` block.
+  template <class Archive>
+  void Serialize(Archive* a) {
+    a->Visit("min_altitude", &min_altitude, NonNegative(),
+             "[m] soft lower bound on the CoM height above the ground plane in the NMPC phase "
+             "(leader: its position state; follower: its displacement from the current height)");
+    a->Visit("max_altitude", &max_altitude, Positive(),
+             "[m] soft upper bound on the same height; above `min_altitude`");
+    a->Visit("neighbour_timeout", &neighbour_timeout, Positive(),
+             "[s] a follower's neighbour with no accepted relative measurement this long "
+             "leaves its cost");
+    a->Visit("neighbour_reacquire_time", &neighbour_reacquire_time, NonNegative(),
+             "[s] it returns after accepted measurements spanning this long, no gap longer "
+             "than this");
+    a->Visit("collision_radius", &collision_radius, NonNegative().AtMost(10, "m"),
+             "[m] r_min: soft minimum CoM distance to every vehicle the relative sensor sees, "
+             "in the OCP (0: off); default twice the reference vehicle's arm length (0.225 m, "
+             "rotor hubs apart: add propeller clearance for side-by-side flight)");
+    a->Nested("recovery", &recovery);
+  }
   /// Fault injection (scenario `faults.solver_failures`, docs/scenarios.md), off by default:
   /// this fraction of NMPC steps is forced to fall back (no solve; the time-shifted plan's
   /// first control is applied, as on a solver error), drawn by InjectedSolverFailure() from

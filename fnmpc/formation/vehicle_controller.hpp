@@ -11,6 +11,7 @@
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/estimation/neighbour_ekf.hpp"
 #include "fnmpc/estimation/vehicle_ekf.hpp"
+#include "fnmpc/formation/controller_settings.hpp"
 #include "fnmpc/formation/neighbour_limits.hpp"
 #include "fnmpc/formation/nmpc_weights.hpp"
 #include "fnmpc/formation/recovery.hpp"
@@ -44,18 +45,14 @@ enum class FlightPhase : int {
 };
 std::string_view ToString(FlightPhase p);
 
-/// Everything one vehicle's controller is built from.
-struct ControllerConfig {
+/// Everything one vehicle's controller is built from: the shared settings and what is its
+/// own.
+struct ControllerConfig : ControllerSettings {
   int vehicle = 0;              ///< index of the vehicle (its sensors' `vehicle` field)
   bool leader = false;          ///< leader: tracks `trajectory`; follower: keeps the formation
   model::VehicleParams params;  ///< vehicle model (mass, attitude model, throttle polynomial)
   SensorsConfig sensors;        ///< sensor noise for the estimators
-  rti::RtiSettings rti;         ///< Ts, N, iterations, budget (defaults: the reference work)
   NmpcWeights weights;
-  double thrust_min = 5.0, thrust_max = 25.0;  ///< NMPC thrust bounds [N]
-  double max_attitude_ref = 0.35;              ///< |roll_ref|, |pitch_ref| bound [rad]
-  double max_speed = 2.0;  ///< soft |v_i| bound [m/s] (state bounds are soft: never infeasible)
-  SafetyConfig safety;     ///< altitude envelope, neighbour loss, recovery ladder, failsafe
   /// Other vehicles the relative sensor may see, tracked for collision avoidance only (a
   /// formation neighbour listed here is ignored: it is tracked anyway). Empty: only the
   /// formation neighbours are avoided.
@@ -66,20 +63,9 @@ struct ControllerConfig {
   Vec3 relative_position_bound{6.0, 6.0, 2.0};           ///< soft |dx_j,i| bounds [m]
   // Leader only: reference offsets from the hover point, from trajectory_start [s].
   WaypointTrajectory trajectory;
-  double trajectory_start = 10.0;
-  // Phases.
-  double takeoff_time = 1.0;         ///< motors start [s]
-  double takeoff_height = 1.0;       ///< height of the CoM above ground at the switch [m]
-  double climb_speed = 0.5;          ///< [m/s]
-  double hover_before_switch = 1.5;  ///< PID hover at the take-off height before the switch [s]
-  double blend_time = 0.5;           ///< linear blend PID -> NMPC (and NMPC -> PID) [s]
-  double landing_time = 1e9;         ///< start of the PID descent [s]
-  double descent_speed = 0.3;        ///< [m/s]
-  double ground_height = 0.1;        ///< CoM height when resting on the ground [m]
-  double touchdown_margin = 0.03;    ///< touchdown: within this of the ground, |v_z| < 0.1 m/s [m]
+  double ground_height = 0.1;      ///< CoM height when resting on the ground [m]
+  double touchdown_margin = 0.03;  ///< touchdown: within this of the ground, |v_z| < 0.1 m/s [m]
   TakeoffPidConfig pid;
-  /// true: command the collective throttle from the thrust and the measured voltage.
-  bool use_throttle = true;
   double voltage_filter_time = 0.3;  ///< first-order filter on the battery voltage [s]
 
   /// Throws std::invalid_argument with the field name on an inconsistent value.

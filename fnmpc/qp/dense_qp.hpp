@@ -5,6 +5,7 @@
 #include <string_view>
 
 #include "fnmpc/core/eigen_abi.hpp"
+#include "fnmpc/core/serialize.hpp"
 
 namespace fnmpc::qp {
 
@@ -68,14 +69,25 @@ struct QpSolution {
   explicit QpSolution(const DenseQpDims& dims = {});
 };
 
+/// Settings of the QP solver (scenario keys `controller.qp.*`, docs/scenarios.md; the
+/// documentation of each field is in Serialize).
 struct QpSettings {
-  int max_iterations = 500;  ///< active-set changes per solve
-  double tolerance = 1e-10;  ///< primal feasibility / dual sign tolerance
-  bool warm_start = true;    ///< start from the previous solve's active set
-  /// Warm-start variant: true = make the whole previous active set active at once and
-  /// drop negative multipliers; false = add the previous constraints one by one, in
-  /// order, while each addition is a full dual-feasible GI step.
+  int max_iterations = 500;
+  double tolerance = 1e-10;
+  bool warm_start = true;
   bool warm_start_batch = true;
+
+  template <class Archive>
+  void Serialize(Archive* a) {
+    a->Visit("max_iterations", &max_iterations, IntIn(1, 100000),
+             "active-set changes per QP solve");
+    a->Visit("tolerance", &tolerance, Positive(), "primal feasibility / dual sign tolerance");
+    a->Visit("warm_start", &warm_start, AnyValue(), "start from the previous solve's active set");
+    a->Visit("warm_start_batch", &warm_start_batch, AnyValue(),
+             "warm start: true = make the whole previous active set active at once and drop "
+             "negative multipliers; false = add the previous constraints one by one while each "
+             "is a full dual-feasible step");
+  }
 };
 
 /// Dual active-set solver (Goldfarb-Idnani) for DenseQp, warm-started from the previous

@@ -6,6 +6,7 @@
 #include <string_view>
 #include <vector>
 
+#include "fnmpc/core/serialize.hpp"
 #include "fnmpc/qp/dense_qp.hpp"
 
 namespace fnmpc::rti {
@@ -13,21 +14,43 @@ namespace fnmpc::rti {
 /// Settings of the real-time-iteration solver (defaults: the reference work and the
 /// benchmark spec).
 struct RtiSettings {
-  int horizon = 15;                  ///< N, shooting intervals
-  double sample_time = 0.05;         ///< Ts [s], length of one interval
-  int integrator_steps = 2;          ///< RK4 steps per interval
-  int max_initial_iterations = 50;   ///< SQP iteration cap of the first call (t = 0)
-  double kkt_threshold = 1e-6;       ///< Algorithm 1: stop iterating below this KKT value
-  int max_iterations = 1;            ///< SQP iterations per later call (1 = pure RTI)
-  double cpu_budget = 0.05;          ///< [s] later calls stop iterating past this CPU time
-  double soft_linear_weight = 1e4;   ///< L1 penalty on the per-stage slack of soft bounds
-  double soft_quadratic_weight = 1e2;  ///< L2 penalty on the same slack
-  /// With Riccati condensing (nx <= 32 or at most 32 cost-relevant states; every benchmark
-  /// problem): after a step whose QP had no active constraint, take the unconstrained
-  /// Riccati step and skip condensing and the QP when it satisfies every bound (it is then
-  /// the QP's solution). false: always condense and solve the QP. Same iterates either way.
+  int horizon = 15;
+  double sample_time = 0.05;
+  int integrator_steps = 2;
+  int max_initial_iterations = 50;
+  double kkt_threshold = 1e-6;
+  int max_iterations = 1;
+  double cpu_budget = 0.05;
+  double soft_linear_weight = 1e4;
+  double soft_quadratic_weight = 1e2;
   bool unconstrained_shortcut = true;
-  qp::QpSettings qp;                 ///< settings of the QP solver
+  qp::QpSettings qp;
+
+  /// Every field with its key (scenario block `controller:`), accepted values and meaning.
+  template <class Archive>
+  void Serialize(Archive* a) {
+    a->Visit("sample_time", &sample_time, Positive(), "Ts [s], length of one interval");
+    a->Visit("horizon", &horizon, IntIn(1, 100).Quiet(), "N, shooting intervals");
+    a->Visit("integrator_steps", &integrator_steps, IntIn(1, 100), "RK4 steps per interval");
+    a->Visit("max_iterations", &max_iterations, IntIn(1, 100),
+             "SQP iterations per call after the first (1 = pure RTI)");
+    a->Visit("max_initial_iterations", &max_initial_iterations, IntIn(1, 1000),
+             "SQP iteration cap of the first call (t = 0)");
+    a->Visit("kkt_threshold", &kkt_threshold, Positive(),
+             "Algorithm 1: stop iterating below this KKT value");
+    a->Visit("cpu_budget", &cpu_budget, Positive(),
+             "[s] later calls stop iterating past this CPU time");
+    a->Visit("soft_linear_weight", &soft_linear_weight, NonNegative(),
+             "L1 penalty on the per-stage slack of the soft bounds");
+    a->Visit("soft_quadratic_weight", &soft_quadratic_weight, Positive(),
+             "L2 penalty on the same slack");
+    a->Visit("unconstrained_shortcut", &unconstrained_shortcut, AnyValue(),
+             "with Riccati condensing: after a step whose QP had no active constraint, take "
+             "the unconstrained Riccati step and skip condensing and the QP when it satisfies "
+             "every bound (it is then the QP's solution); false: always condense and solve the "
+             "QP. Same iterates either way");
+    a->Nested("qp", &qp);
+  }
 
   void Validate() const {
     auto fail = [](const std::string& what) {

@@ -122,8 +122,10 @@ void BindScenario(py::module_& m) {
       .def_readwrite("battery_sag", &ScenarioConfig::battery_sag)
       .def_readonly("vehicles", &ScenarioConfig::vehicles)
       .def_readonly("leader", &ScenarioConfig::leader, "index of the leader")
-      .def_readonly("sample_time", &ScenarioConfig::sample_time, "Ts [s]")
-      .def_readonly("horizon", &ScenarioConfig::horizon, "N")
+      .def_property_readonly(
+          "sample_time", [](const ScenarioConfig& s) { return s.rti.sample_time; }, "Ts [s]")
+      .def_property_readonly(
+          "horizon", [](const ScenarioConfig& s) { return s.rti.horizon; }, "N")
       .def_readonly("landing_time", &ScenarioConfig::landing_time, "[s]")
       .def_readonly("warnings", &ScenarioConfig::warnings,
                     "plausibility warnings of the file (fnmpc run prints them)")

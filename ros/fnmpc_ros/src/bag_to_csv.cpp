@@ -150,7 +150,7 @@ int Convert(const std::string& bag_file, const std::string& scenario_file, const
       // Each vehicle's own window, as `fnmpc run` (issue #21): up to its own landing.
       const bool window = t >= sc.trajectory_start && t < config::LandingTime(sc, i);
       const bool steady =
-          window && trajectory.TimeSinceStop(t - sc.trajectory_start) >= sc.settle_time;
+          window && trajectory.TimeSinceStop(t - sc.trajectory_start) >= sc.metrics.settle_time;
       // Every neighbour's error; the CSV has columns for the first two.
       std::array<double, formation::kMaxNeighbours> err;
       err.fill(kNaN);
@@ -232,7 +232,7 @@ int Convert(const std::string& bag_file, const std::string& scenario_file, const
   s["source"] = "bag " + bag_file;
   s["seed"] = sc.seed;
   s["formation_window_s"] = {sc.trajectory_start, sc.landing_time};
-  s["sample_time_s"] = sc.sample_time;
+  s["sample_time_s"] = sc.rti.sample_time;
   s["steady_state_formation_error_m"] = Num(steady_worst);
   s["mean_formation_error_m"] = Num(mean_worst);
   s["max_formation_error_m"] = Num(max_worst);

@@ -95,7 +95,7 @@ class SimNode {
       io_.push_back(std::move(io));
     }
     ROS_INFO("sim_node: %s, %zu vehicles, seed %d, %.1f s, lockstep period %.3f s", file.c_str(),
-             io_.size(), seed, duration_, scenario_.sample_time);
+             io_.size(), seed, duration_, scenario_.rti.sample_time);
   }
 
   /// Runs the scenario to its end; returns false when ROS shut down first.
@@ -122,7 +122,7 @@ class SimNode {
     }
     const double dt = world_->physics_dt();
     const int steps = static_cast<int>(std::lround(duration_ / dt));
-    const int every = std::max(1, static_cast<int>(std::lround(scenario_.sample_time / dt)));
+    const int every = std::max(1, static_cast<int>(std::lround(scenario_.rti.sample_time / dt)));
     for (int step = 0; step <= steps; ++step) {
       if (!ros::ok()) return false;
       const double t = world_->time();

@@ -102,7 +102,7 @@ class VehicleNode {
       sync_sub_ = nh_.subscribe<fnmpc_ros::SimSync>(
           topics::kSync, 10, [this](const auto& m) { syncs_.push_back(*m); }, {}, hints);
     } else {
-      timer_ = nh_.createTimer(ros::Duration(scenario_.sample_time),
+      timer_ = nh_.createTimer(ros::Duration(scenario_.rti.sample_time),
                                [this](const ros::TimerEvent&) { Step(ros::Time::now().toSec()); });
     }
     ROS_INFO("vehicle_node %s (%s, vehicle %d of %s): %s", name_.c_str(),
@@ -215,7 +215,7 @@ class VehicleNode {
       const auto points = controller_->PredictedPositions();
       for (std::size_t k = 0; k < points.size(); ++k) {
         geometry_msgs::PoseStamped p;
-        p.header.stamp = ToRosTime(t + static_cast<double>(k) * scenario_.sample_time);
+        p.header.stamp = ToRosTime(t + static_cast<double>(k) * scenario_.rti.sample_time);
         p.header.frame_id = frame_;
         p.pose.position.x = points[k].x();
         p.pose.position.y = points[k].y();

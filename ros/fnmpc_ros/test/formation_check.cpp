@@ -223,7 +223,7 @@ void Watch() {
       g_obs.last_time = t;
       const bool window = t >= g_scenario.trajectory_start && t < window_end;
       const bool steady = window && trajectory.TimeSinceStop(t - g_scenario.trajectory_start) >=
-                                        g_scenario.settle_time;
+                                        g_scenario.metrics.settle_time;
       for (int i = 0; i < nv; ++i) {
         for (int j = i + 1; j < nv; ++j) {
           if (i == killed_index || j == killed_index) continue;
@@ -313,7 +313,7 @@ double Param(const char* name) {
 // ---- Flight of the whole formation.
 TEST(Triangle, FlewTheWholeDuration) {
   EXPECT_TRUE(g_obs.completed) << "last ground truth at t = " << g_obs.last_time;
-  EXPECT_GE(g_obs.samples, static_cast<int>(g_settings.duration / g_scenario.sample_time));
+  EXPECT_GE(g_obs.samples, static_cast<int>(g_settings.duration / g_scenario.rti.sample_time));
 }
 
 TEST(Triangle, FormationErrorWithinBound) {

@@ -1,0 +1,325 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "apps/fnmpc/run_loop.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <stdexcept>
+#include <string_view>
+
+#include "apps/fnmpc/fault_injector.hpp"
+#include "apps/fnmpc/output_files.hpp"
+#include "apps/fnmpc/run_log.hpp"
+#include "fnmpc/formation/trajectory.hpp"
+#include "fnmpc/formation/vehicle_controller.hpp"
+#include "fnmpc/sim/world.hpp"
+
+namespace fnmpc::app {
+
+using formation::FlightPhase;
+
+RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& options,
+                        const std::string& dir) {
+  const double duration = options.duration > 0.0 ? options.duration : sc.duration;
+  const bool manual = sc.leader_mode == "manual";
+  const int nv = static_cast<int>(sc.vehicles.size());
+  const formation::WaypointTrajectory trajectory = LeaderTrajectory(sc, options.seed);
+
+  // ---- World. The autopilots' command-timeout failsafe is on: a vehicle whose controller
+  // stops (fault kill_controller) is landed by its autopilot, as a real one would.
+  sim::WorldConfig world_config = WorldConfigFor(sc, options.seed);
+  world_config.command_timeout.enabled = true;
+  sim::World world(world_config);
+  const config::ScenarioFaults& faults = sc.faults;
+  FaultInjector injector(faults, options.seed);
+  std::vector<char> killed(nv, 0);
+  std::vector<double> prev_vz(nv, 0.0);
+
+  // ---- Controllers (a manually moved leader has none).
+  std::vector<std::unique_ptr<formation::VehicleController>> ctrl(nv);
+  for (int i = 0; i < nv; ++i) {
+    if (manual && i == sc.leader) continue;
+    formation::ControllerConfig cc = ControllerConfigFor(sc, i, trajectory);
+    cc.safety.injected_failure_rate = faults.solver_failure_rate;  // 0: off
+    cc.safety.injected_failure_seed = options.seed;
+    ctrl[i] = std::make_unique<formation::VehicleController>(cc);
+  }
+
+  // ---- Logs.
+  std::filesystem::create_directories(dir);
+  if (sc.reality.enabled) WritePlantFiles(sc, world_config, dir);
+  RunRecord rec;
+  rec.duration = duration;
+  rec.vehicles.resize(nv);
+  rec.downed.resize(nv);
+  std::vector<VehicleCsvLog> csv;
+  csv.reserve(nv);
+  for (int i = 0; i < nv; ++i) {
+    const auto& v = sc.vehicles[i];
+    VehicleRecord& L = rec.vehicles[i];
+    csv.emplace_back(PathInside(dir, v.name + ".csv"));
+    L.nb_errors.resize(v.neighbours.size());
+    L.nb_steady.resize(v.neighbours.size());
+  }
+
+  const double dt = world.physics_dt();
+  if (!(std::isfinite(duration) && duration > 0.0 && duration <= config::kMaxScenarioDuration)) {
+    throw std::invalid_argument("[RunScenario] duration must be in (0, " +
+                                std::to_string(config::kMaxScenarioDuration) + "] s, got " +
+                                std::to_string(duration));
+  }
+  const int steps = static_cast<int>(std::lround(duration / dt));
+  const int every = std::max(1, static_cast<int>(std::lround(sc.rti.sample_time / dt)));
+  std::vector<formation::ControlOutput> prev(nv);
+  Measurement m;
+  int next_progress = 0;
+
+  for (int step = 0; step <= steps; ++step) {
+    if (options.stop != nullptr && *options.stop != 0) {
+      rec.stopped = "interrupted";
+      break;
+    }
+    const double t = world.time();
+    if (manual) {
+      Vec3 p, v;
+      trajectory.Sample(t - sc.trajectory_start, &p, &v);
+      world.SetState(sc.leader, sc.manual_start + p, Vec3(0, 0, sc.vehicles[sc.leader].yaw), v,
+                     Vec3::Zero());
+    }
+    if (faults.motors_off.active() && t >= faults.motors_off.time - 1e-9 &&
+        !world.GetAutopilotStatus(faults.motors_off.index).motors_killed) {
+      world.KillMotors(faults.motors_off.index);
+      if (options.progress) {
+        std::fprintf(stderr, "\n%s t = %.2f s: motors of %s off (fault)\n", options.label.c_str(),
+                     t, sc.vehicles[faults.motors_off.index].name.c_str());
+      }
+    }
+    // A vehicle downed by a fault: its first ground contact (CoM within 1.5 cm of its
+    // resting height), checked every physics step for the vertical speed at contact.
+    for (int i = 0; i < nv; ++i) {
+      const bool downed_by_fault = killed[i] != 0 || (faults.motors_off.index == i &&
+                                                      world.GetAutopilotStatus(i).motors_killed);
+      if (!downed_by_fault || !std::isnan(rec.downed[i].impact_time)) continue;
+      // Contact: the CoM within 1.5 cm of its resting height, or a hard or tilted impact that
+      // the contact stops higher (CoM below 0.3 m above rest, about a tilted foot's reach, and
+      // an upward jump of the vertical speed of more than 0.02 m/s in one 1 ms step: > 2 g of
+      // contact deceleration). The speed is the one just before the contact.
+      const sim::TrueState x = world.GetTrueState(i);
+      const double z = x.position.z() - sim::World::kRestHeight;
+      const bool jump = x.velocity.z() - prev_vz[i] > 0.02;
+      if (z < 0.015 || (z < 0.3 && jump)) {
+        rec.downed[i].impact_time = t;
+        rec.downed[i].impact_vz = std::min(prev_vz[i], x.velocity.z());
+        rec.downed[i].impact_position = x.position;
+      }
+      prev_vz[i] = x.velocity.z();
+    }
+    while (world.PopMeasurement(&m)) {
+      if (!injector.Filter(&m)) continue;
+      for (int i = 0; i < nv; ++i) {
+        if (ctrl[i] && !killed[i]) ctrl[i]->Process(m);
+      }
+    }
+    if (step % every == 0) {
+      std::vector<sim::TrueState> truth(nv);
+      std::vector<Vec3> positions(nv);
+      for (int i = 0; i < nv; ++i) {
+        truth[i] = world.GetTrueState(i);
+        positions[i] = truth[i].position;
+      }
+      for (int i = 0; i < nv; ++i) {
+        for (int j = i + 1; j < nv; ++j) {
+          rec.min_separation =
+              std::min(rec.min_separation, (truth[i].position - truth[j].position).norm());
+        }
+      }
+      // Leader reference and steady-state flag (formation window: trajectory start to landing).
+      Vec3 ref_off, ref_v;
+      trajectory.Sample(t - sc.trajectory_start, &ref_off, &ref_v);
+      // Each vehicle's own window ends at its own landing (never at another one's).
+      const bool settled =
+          trajectory.TimeSinceStop(t - sc.trajectory_start) >= sc.metrics.settle_time;
+      Vec3 leader_ref = Vec3::Constant(kNaN);
+      if (manual) {
+        leader_ref = sc.manual_start + ref_off;
+      } else if (ctrl[sc.leader] && ctrl[sc.leader]->anchor().allFinite()) {
+        leader_ref = ctrl[sc.leader]->anchor() + ref_off;
+      }
+      for (int i = 0; i < nv; ++i) {
+        const auto& v = sc.vehicles[i];
+        VehicleRecord& L = rec.vehicles[i];
+        const bool window = t >= sc.trajectory_start && t < config::LandingTime(sc, i);
+        const bool steady = window && settled;
+        formation::ControlOutput out;
+        if (faults.kill_controller.index == i && !killed[i] &&
+            t >= faults.kill_controller.time - 1e-9) {
+          killed[i] = 1;  // no more Process, Control or SetCommand: the autopilot is alone
+          if (options.progress) {
+            std::fprintf(stderr, "\n%s t = %.2f s: controller of %s killed (fault)\n",
+                         options.label.c_str(), t, v.name.c_str());
+          }
+        }
+        if (killed[i]) {
+          out.time = t;
+          if (std::isnan(L.touchdown_time) && std::isfinite(rec.downed[i].impact_time)) {
+            L.touchdown_time = rec.downed[i].impact_time;
+            L.touchdown_vz = rec.downed[i].impact_vz;
+          }
+          L.motors_off = truth[i].rotor_rpm.norm() < 1.0;
+        } else if (ctrl[i]) {
+          out = ctrl[i]->Control(t);
+          sim::AttitudeCommand cmd;
+          cmd.thrust = out.thrust;
+          cmd.throttle = out.throttle;
+          cmd.roll = out.roll;
+          cmd.pitch = out.pitch;
+          cmd.yaw = out.yaw;
+          world.SetCommand(i, cmd);
+          ctrl[i]->Diagnose(&out);  // after the command: not on the command path
+          if (out.recovery == formation::RecoveryAction::kReinitialise) ++L.reinitialisations;
+          if (out.recovery == formation::RecoveryAction::kFailsafe) {
+            L.failsafe_time = t;
+            L.failsafe_reason = std::string(formation::ToString(out.recovery_reason));
+            if (options.progress) {
+              std::fprintf(stderr, "\n%s t = %.2f s: %s hands over to the failsafe (%s)\n",
+                           options.label.c_str(), t, v.name.c_str(), L.failsafe_reason.c_str());
+            }
+          }
+          if (out.nmpc) {
+            if (formation::InjectedSolverFailure(ctrl[i]->config().safety, i, t,
+                                                 sc.rti.sample_time))
+              ++rec.injected_failures;
+            ++L.steps;
+            if (std::isnan(L.first_step_time)) {
+              L.first_step_time = out.solver_time;
+              L.max_thrust_jump_at_switch = std::abs(out.thrust - prev[i].thrust);
+            }
+            L.solver_time.push_back(out.solver_time);
+            L.solver_cpu.push_back(out.solver_cpu_time);
+            if (out.solver_time > sc.rti.sample_time) ++L.over_budget;
+            if (out.fallback) ++L.fallbacks;
+            if (out.status != rti::RtiStatus::kSuccess) ++L.failures;
+            L.kkt.push_back(out.kkt);
+            L.cost.push_back(out.cost);
+          }
+          if (out.guarded) ++L.guarded;
+          // Touchdown: the first control step of the landing phase with the true CoM within
+          // 1.5 cm of its resting height (the feet touch); its true vertical speed is kept.
+          if ((out.phase == FlightPhase::kLanding || out.phase == FlightPhase::kLanded ||
+               out.phase == FlightPhase::kFailsafe) &&
+              std::isnan(L.touchdown_time) &&
+              truth[i].position.z() < sim::World::kRestHeight + 0.015) {
+            L.touchdown_vz = truth[i].velocity.z();
+            L.touchdown_time = t;
+          }
+          if (out.phase == FlightPhase::kLanded) L.motors_off = true;
+          // Motors off (fault): its touchdown is the impact, not what its controller sees
+          // after the crash.
+          if (faults.motors_off.index == i && std::isfinite(rec.downed[i].impact_time)) {
+            L.touchdown_time = rec.downed[i].impact_time;
+            L.touchdown_vz = rec.downed[i].impact_vz;
+          }
+          prev[i] = out;
+        } else {
+          out.phase = FlightPhase::kNmpc;
+          out.time = t;
+        }
+        const sim::TrueState& x = truth[i];
+        // Flight envelope (from the truth): altitude above the ground and horizontal distance
+        // from the start; the first excursion is kept.
+        {
+          const double altitude = x.position.z() - sim::World::kRestHeight;
+          const Vec3 start = world_config.vehicles[static_cast<std::size_t>(i)].position;
+          const double distance = (x.position - start).head<2>().norm();
+          L.max_altitude = std::max(L.max_altitude, altitude);
+          if (std::isnan(L.envelope_time) && (!(altitude <= sc.envelope.max_altitude) ||
+                                              !(distance <= sc.envelope.max_distance))) {
+            L.envelope_time = t;
+            L.envelope_reason = fmt::format(
+                "left the flight envelope at t = {:.2f} s: altitude {:.2f} m (max_altitude "
+                "{:.2f}), "
+                "{:.2f} m from its start (max_distance {:.2f}), at ({:.2f}, {:.2f}, {:.2f}) m",
+                t, altitude, sc.envelope.max_altitude, distance, sc.envelope.max_distance,
+                x.position.x(), x.position.y(), x.position.z());
+          }
+        }
+        // Formation errors from the truth: (p_j - p_i) in the target frame minus d_j.
+        // Every neighbour's error; the CSV has columns for the first two.
+        std::array<Vec3, formation::kMaxNeighbours> rel, est_rel;
+        rel.fill(Vec3::Constant(kNaN));
+        est_rel.fill(Vec3::Constant(kNaN));
+        std::array<double, formation::kMaxNeighbours> err;
+        err.fill(kNaN);
+        double ferr = kNaN;
+        if (!v.leader) {
+          ferr = FormationError(sc, i, positions, x.euler.z(), &err, &rel);
+          for (std::size_t j = 0; j < v.neighbours.size(); ++j) {
+            if (ctrl[i] && j < ctrl[i]->estimates().neighbours.size()) {
+              est_rel[j] = ctrl[i]->estimates().neighbours[j].head<3>();
+            }
+            if (window) L.nb_errors[j].push_back(err[j]);
+            if (steady) L.nb_steady[j].push_back(err[j]);
+          }
+          if (window) L.errors.push_back(ferr);
+          if (t >= sc.takeoff_time && std::isnan(L.touchdown_time)) L.flight_errors.push_back(ferr);
+          if (steady) L.steady_errors.push_back(ferr);
+          if (window) L.samples.push_back({t, steady, err, out.active_neighbours});
+        }
+        double track = kNaN;
+        if (v.leader && leader_ref.allFinite()) {
+          track = (x.position - leader_ref).norm();
+          if (window && !manual) L.tracking.push_back(track);
+        }
+        const estimation::VehicleEstimate no_estimate{};
+        const auto& e = ctrl[i] ? ctrl[i]->estimates().own : no_estimate;
+        const std::int64_t rej = ctrl[i] ? ctrl[i]->estimator_rejections() : 0;
+        VehicleLogRow row;
+        row.t = t;
+        row.phase = killed[i] ? std::string_view("killed") : formation::ToString(out.phase);
+        row.truth = &x;
+        row.estimate = &e;
+        row.output = &out;
+        row.leader_ref = leader_ref;
+        row.tracking = v.leader ? track : kNaN;
+        row.relative = &rel;
+        row.estimated_relative = &est_rel;
+        row.errors = &err;
+        row.formation_error = ferr;
+        row.steady = steady;
+        row.estimator_rejections = rej;
+        csv[i].Write(row);
+      }
+      if (options.progress && t >= next_progress) {
+        std::fprintf(stderr, "\r%s t = %5.1f / %.1f s", options.label.c_str(), t, duration);
+        std::fflush(stderr);
+        next_progress += 5;
+      }
+    }
+    if (step < steps) {
+      try {
+        world.StepOnce();
+      } catch (const sim::SimulationError& e) {
+        rec.sim_error = e.what();
+        break;
+      }
+    }
+  }
+  if (options.progress)
+    std::fprintf(stderr, "\r%s t = %5.1f / %.1f s\n", options.label.c_str(), duration, duration);
+  for (VehicleCsvLog& log : csv) log.Finish();
+  for (int i = 0; i < nv; ++i) {
+    rec.controlled.push_back(ctrl[i] ? 1 : 0);
+    rec.estimator_rejections.push_back(ctrl[i] ? ctrl[i]->estimator_rejections() : 0);
+    rec.final_state.push_back(world.GetTrueState(i));
+    rec.final_autopilot.push_back(world.GetAutopilotStatus(i));
+  }
+  for (std::size_t w = 0; w < faults.sensor_dropouts.size(); ++w)
+    rec.dropped.push_back(injector.dropped(w));
+  rec.measurements = injector.measurements();
+  rec.outliers = injector.outliers();
+  return rec;
+}
+
+}  // namespace fnmpc::app

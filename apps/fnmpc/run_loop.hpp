@@ -1,0 +1,19 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include <string>
+
+#include "apps/fnmpc/run_record.hpp"
+#include "apps/fnmpc/scenario_runner.hpp"
+
+namespace fnmpc::app {
+
+/// The closed loop of RunScenario: the world (1 ms physics, all sensors, the autopilots'
+/// command-timeout failsafe on), one controller per flying vehicle every sample time, the
+/// scenario's faults applied; writes <dir>/<vehicle>.csv (and the plant files with reality
+/// on) and returns what the metrics need. Stops early on options.stop or a simulator error
+/// (RunRecord::stopped, sim_error).
+RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& options,
+                        const std::string& dir);
+
+}  // namespace fnmpc::app

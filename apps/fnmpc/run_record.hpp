@@ -1,0 +1,71 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "fnmpc/core/types.hpp"
+#include "fnmpc/formation/neighbour_limits.hpp"
+#include "fnmpc/sim/world.hpp"
+
+/// What the closed loop of `fnmpc run` records for the run's metrics (run_loop.cpp writes it,
+/// run_metrics.cpp reads it).
+namespace fnmpc::app {
+
+/// What one vehicle did, accumulated at every control step.
+struct VehicleRecord {
+  std::vector<double> errors;         // follower: mean over neighbours of |dx_j - d_j|, own window
+  std::vector<double> flight_errors;  // follower: the same from take-off to touchdown
+  double max_altitude = -kInf;        // highest CoM height above the resting height [m]
+  double envelope_time = kNaN;        // first time outside the flight envelope [s]
+  std::string envelope_reason;
+  std::vector<double> steady_errors;
+  std::vector<std::vector<double>> nb_errors;  // per neighbour
+  std::vector<std::vector<double>> nb_steady;
+  std::vector<double> tracking;  // leader |p - p_ref|
+  std::vector<double> solver_time, solver_cpu, kkt, cost;
+  long over_budget = 0, steps = 0, fallbacks = 0, guarded = 0, failures = 0;
+  long reinitialisations = 0;
+  double failsafe_time = kNaN;
+  std::string failsafe_reason;
+  double first_step_time = kNaN;
+  double touchdown_vz = kNaN, touchdown_time = kNaN;
+  double max_thrust_jump_at_switch = kNaN;
+  bool motors_off = false;
+  // Per control step in the formation window (followers): time, steady flag, errors to the
+  // neighbours and the neighbours in the cost (fault report: errors after a kill).
+  struct Sample {
+    double t;
+    bool steady;
+    std::array<double, formation::kMaxNeighbours> err;
+    int active;
+  };
+  std::vector<Sample> samples;
+};
+
+/// What happened to a vehicle downed by a fault (first ground contact after the fault).
+struct DownedLog {
+  double impact_time = kNaN, impact_vz = kNaN;
+  Vec3 impact_position = Vec3::Constant(kNaN);
+};
+
+/// The whole run.
+struct RunRecord {
+  double duration = 0.0;  ///< simulated time asked for [s]
+  std::vector<VehicleRecord> vehicles;
+  std::vector<DownedLog> downed;
+  std::vector<char> controlled;  ///< the vehicle has a controller (not a hand-moved leader)
+  std::vector<sim::TrueState> final_state;            ///< at the end of the loop
+  std::vector<sim::AutopilotStatus> final_autopilot;  ///< at the end of the loop
+  std::vector<std::int64_t> estimator_rejections;     ///< at the end, per controlled vehicle
+  double min_separation = kInf;                       ///< true CoM distance of any two vehicles [m]
+  long injected_failures = 0;  ///< forced solver fallbacks (faults.solver_failures)
+  std::vector<long> dropped;   ///< per faults.sensor_dropouts window
+  long measurements = 0, outliers = 0;
+  std::string stopped;    ///< why the loop ended early ("interrupted"), empty: it did not
+  std::string sim_error;  ///< the simulator's instability report
+};
+
+}  // namespace fnmpc::app

@@ -1,0 +1,153 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <string>
+
+/// One definition of each setting: a settings struct lists its fields once, in
+///
+///   template <class Archive> void Serialize(Archive* a) {
+///     a->Visit("horizon", &horizon, IntIn(1, 100), "N, shooting intervals");
+///     a->Nested("qp", &qp);
+///   }
+///
+/// with the key a file uses, what values it accepts and its documentation; the default is
+/// the member's initialiser. Readers (fnmpc/config's YAML reader) and writers (the generated
+/// key tables of docs/scenarios.md) walk it; the algorithm layers never see a file. A key may
+/// hold dots ("bounds.speed"): the field sits in a nested mapping of that name. (The idea is
+/// Drake's Serialize/DRAKE_NVP; this is our own minimal version.) C++17: the ROS package
+/// compiles some of its units as C++17.
+namespace fnmpc {
+
+/// What a field accepts. A reader rejects anything else with `Describe()`'s words and the
+/// value; the doc writer prints `Describe()`. Numbers must be finite unless kind is kAny.
+struct Limit {
+  enum class Kind { kAny, kPositive, kNonNegative, kIntRange, kNonNegativeEntries };
+  Kind kind = Kind::kAny;
+  double lo = 0.0, hi = 0.0;  ///< kIntRange: [lo, hi]
+  bool say_value = true;      ///< append ", got <value>" to the message
+  /// Extra bound checked after `kind`: value < upper (or <= with upper_inclusive), value >=
+  /// lower; `unit` ends their message ("must be < 1.2 rad").
+  double upper = std::numeric_limits<double>::infinity();
+  bool upper_inclusive = false;
+  double lower = -std::numeric_limits<double>::infinity();
+  const char* unit = "";
+
+  [[nodiscard]] Limit Below(double v, const char* u) const {
+    Limit l = *this;
+    l.upper = v;
+    l.upper_inclusive = false;
+    l.unit = u;
+    return l;
+  }
+  [[nodiscard]] Limit AtMost(double v, const char* u) const {
+    Limit l = *this;
+    l.upper = v;
+    l.upper_inclusive = true;
+    l.unit = u;
+    return l;
+  }
+  [[nodiscard]] Limit AtLeast(double v, const char* u) const {
+    Limit l = *this;
+    l.lower = v;
+    l.unit = u;
+    return l;
+  }
+  [[nodiscard]] Limit Quiet() const {
+    Limit l = *this;
+    l.say_value = false;
+    return l;
+  }
+
+  /// Empty when `v` is accepted, else what it must be ("must be > 0, got -1").
+  [[nodiscard]] std::string Check(double v) const {
+    // Built by appending: GCC 12 warns (-Wrestrict, a false positive) on "literal" + string.
+    std::string got;
+    if (say_value) got.append(", got ").append(std::to_string(v));
+    std::string m;
+    switch (kind) {
+      case Kind::kAny:
+        break;
+      case Kind::kPositive:
+        if (!(v > 0.0) || !std::isfinite(v)) return m.append("must be > 0").append(got);
+        break;
+      case Kind::kNonNegative:
+        if (!(v >= 0.0) || !std::isfinite(v)) return m.append("must be >= 0").append(got);
+        break;
+      case Kind::kNonNegativeEntries:
+        if (!(v >= 0.0)) return m.append("weights must be >= 0");
+        break;
+      case Kind::kIntRange:
+        if (!(v >= lo && v <= hi)) {
+          return m.append("must be in [")
+              .append(Num(lo))
+              .append(", ")
+              .append(Num(hi))
+              .append("]")
+              .append(got);
+        }
+        break;
+    }
+    if (upper_inclusive ? !(v <= upper) : !(v < upper))
+      return m.append(upper_inclusive ? "must be <= " : "must be < ")
+          .append(Num(upper))
+          .append(Unit());
+    if (!(v >= lower)) return m.append("must be >= ").append(Num(lower)).append(Unit());
+    return m;
+  }
+
+  /// What the field accepts, for the docs ("> 0", "1..100", "> 0, < 1.2 rad"; "" for kAny).
+  [[nodiscard]] std::string Describe() const {
+    std::string d;
+    switch (kind) {
+      case Kind::kAny:
+        break;
+      case Kind::kPositive:
+        d = "> 0";
+        break;
+      case Kind::kNonNegative:
+      case Kind::kNonNegativeEntries:
+        d = "≥ 0";
+        break;
+      case Kind::kIntRange:
+        d.append(Num(lo)).append("..").append(Num(hi));
+        break;
+    }
+    auto add = [&d](const char* op, double x, const std::string& unit) {
+      if (!d.empty()) d.append(", ");
+      d.append(op).append(Num(x)).append(unit);
+    };
+    if (std::isfinite(upper)) add(upper_inclusive ? "≤ " : "< ", upper, Unit());
+    if (std::isfinite(lower)) add("≥ ", lower, Unit());
+    return d;
+  }
+
+  static std::string Num(double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%g", v);
+    return b;
+  }
+
+ private:
+  [[nodiscard]] std::string Unit() const {
+    std::string u;
+    if (*unit != '\0') u.append(" ").append(unit);
+    return u;
+  }
+};
+
+inline Limit AnyValue() { return {}; }
+inline Limit Positive() { return {Limit::Kind::kPositive}; }
+inline Limit NonNegative() { return {Limit::Kind::kNonNegative}; }
+/// Every entry of a vector >= 0 (weights).
+inline Limit NonNegativeEntries() { return {Limit::Kind::kNonNegativeEntries}; }
+inline Limit IntIn(int lo, int hi) {
+  Limit l{Limit::Kind::kIntRange};
+  l.lo = lo;
+  l.hi = hi;
+  return l;
+}
+
+}  // namespace fnmpc

@@ -1,0 +1,59 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+#include "fnmpc/core/serialize.hpp"
+#include "fnmpc/formation/recovery.hpp"
+#include "fnmpc/rti/rti_settings.hpp"
+
+namespace fnmpc::formation {
+
+/// The settings every vehicle's controller of a formation shares: what a scenario sets
+/// (blocks `controller:`, `phases:`, `safety:` and `leader.start_time`). Serialize lists each
+/// field once with its key, accepted values and meaning; the defaults are the initialisers.
+struct ControllerSettings {
+  rti::RtiSettings rti;  ///< Ts, N, iterations, budget, QP (defaults: the reference work)
+  double thrust_min = 5.0, thrust_max = 25.0;
+  double max_attitude_ref = 0.35;
+  double max_speed = 2.0;
+  SafetyConfig safety;
+  double trajectory_start = 10.0;
+  double takeoff_time = 1.0;
+  double takeoff_height = 1.0;
+  double climb_speed = 0.5;
+  double hover_before_switch = 1.5;
+  double blend_time = 0.5;
+  double landing_time = 1e9;
+  double descent_speed = 0.3;
+  bool use_throttle = true;
+
+  template <class Archive>
+  void Serialize(Archive* a) {
+    a->Nested("controller", &rti);
+    a->Visit("controller.use_throttle", &use_throttle, AnyValue(),
+             "true: command the collective throttle from the thrust and the measured battery "
+             "voltage; false: the thrust");
+    a->VisitRange("controller.bounds.thrust", &thrust_min, &thrust_max,
+                  "[N] NMPC thrust input bounds [min, max]; min below every vehicle's weight m g, "
+                  "max ≥ 1.2 m g");
+    a->Visit("controller.bounds.attitude_ref", &max_attitude_ref, Positive().Below(1.2, "rad"),
+             "[rad] |roll_ref|, |pitch_ref| bound");
+    a->Visit("controller.bounds.speed", &max_speed, Positive(),
+             "[m/s] velocity bound per axis, soft (exact penalty: never makes a QP infeasible)");
+    a->Visit("leader.start_time", &trajectory_start, Positive(),
+             "[s] start of the leader's first leg (take-off and engagement happen before)");
+    a->Visit("phases.takeoff_time", &takeoff_time, NonNegative(), "[s] motors start");
+    a->Visit("phases.takeoff_height", &takeoff_height, Positive().AtLeast(0.3, "m"),
+             "[m] CoM height above the ground at the switch to the NMPC");
+    a->Visit("phases.climb_speed", &climb_speed, Positive(), "[m/s] PID climb");
+    a->Visit("phases.hover_before_switch", &hover_before_switch, NonNegative(),
+             "[s] PID hover at the take-off height before the switch");
+    a->Visit("phases.blend_time", &blend_time, NonNegative(),
+             "[s] linear blend PID → NMPC (and NMPC → PID)");
+    a->Visit("phases.landing_time", &landing_time, Positive(),
+             "[s] start of the PID descent; between `leader.start_time` and `duration`");
+    a->Visit("phases.descent_speed", &descent_speed, Positive(), "[m/s] PID descent");
+    a->Nested("safety", &safety);
+  }
+};
+
+}  // namespace fnmpc::formation
