@@ -5,26 +5,16 @@
 
 #include <map>
 
+#include "fnmpc/formation/formation_shape.hpp"
+
 namespace fnmpc::app {
 
 std::vector<int> TieDepths(const config::ScenarioConfig& scenario) {
-  const std::size_t n = scenario.vehicles.size();
-  std::vector<int> depth(n, -1);
-  if (scenario.leader >= 0) depth[static_cast<std::size_t>(scenario.leader)] = 0;
-  // Relaxed until nothing changes: at most n rounds.
-  for (bool changed = true; changed;) {
-    changed = false;
-    for (std::size_t i = 0; i < n; ++i) {
-      for (const config::ScenarioNeighbour& nb : scenario.vehicles[i].neighbours) {
-        const int d = depth[static_cast<std::size_t>(nb.index)];
-        if (d >= 0 && (depth[i] < 0 || d + 1 < depth[i])) {
-          depth[i] = d + 1;
-          changed = true;
-        }
-      }
-    }
-  }
-  return depth;
+  std::vector<std::vector<int>> neighbours(scenario.vehicles.size());
+  for (std::size_t i = 0; i < neighbours.size(); ++i)
+    for (const config::ScenarioNeighbour& nb : scenario.vehicles[i].neighbours)
+      neighbours[i].push_back(nb.index);
+  return formation::TieDepths(neighbours, scenario.leader);
 }
 
 std::string VehiclesYaml(const config::ScenarioConfig& scenario) {

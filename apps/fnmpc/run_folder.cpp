@@ -40,11 +40,10 @@ nlohmann::json RunFolder(const config::ScenarioConfig& sc, const RunFolderOption
   }
   const std::uint64_t seed0 =
       options.seed >= 0 ? static_cast<std::uint64_t>(options.seed) : sc.seed;
-  // Run r writes only run-NN/ and results[r]; the workers take the next run index. A run
-  // the simulator failed ends the folder after it, as with one job: later runs are not
+  // Run r writes only run-NN/ and results[r] (null until it is done); the workers take the next run
+  // index. A run the simulator failed ends the folder after it, as with one job: later runs are not
   // started, and those already flown are removed below.
   std::vector<nlohmann::json> results(static_cast<std::size_t>(options.runs));
-  std::vector<char> done(results.size(), 0);
   std::atomic<int> next{0};
   std::atomic<int> first_failure{options.runs};
   std::mutex print_mutex;
@@ -74,7 +73,6 @@ nlohmann::json RunFolder(const config::ScenarioConfig& sc, const RunFolderOption
                    s["landed_safely"].get<bool>());
       }
       results[static_cast<std::size_t>(r)] = std::move(s);
-      done[static_cast<std::size_t>(r)] = 1;
     }
   };
   std::exception_ptr error;  // the first exception of a worker, rethrown after the join
@@ -100,10 +98,11 @@ nlohmann::json RunFolder(const config::ScenarioConfig& sc, const RunFolderOption
   std::vector<nlohmann::json> runs;
   for (int r = 0; r < options.runs; ++r) {
     const auto k = static_cast<std::size_t>(r);
-    if (done[k] == 0 || r > first_failure) {
+    const bool done = !results[k].is_null();
+    if (!done || r > first_failure) {
       // Flown after the failed run (or not at all): not part of the folder.
       std::error_code ec;
-      if (done[k] != 0) std::filesystem::remove_all(fmt::format("{}/run-{:02d}", dir, r + 1), ec);
+      if (done) std::filesystem::remove_all(fmt::format("{}/run-{:02d}", dir, r + 1), ec);
       continue;
     }
     runs.push_back(std::move(results[k]));

@@ -79,6 +79,25 @@ bool ParseFormationShape(std::string_view name, FormationShape* shape) {
   return true;
 }
 
+std::vector<int> TieDepths(const std::vector<std::vector<int>>& neighbours, int leader) {
+  std::vector<int> depth(neighbours.size(), -1);
+  if (leader >= 0) depth.at(static_cast<std::size_t>(leader)) = 0;
+  // Relaxed until nothing changes: at most one round per vehicle.
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (std::size_t i = 0; i < neighbours.size(); ++i) {
+      for (const int j : neighbours[i]) {
+        const int d = depth.at(static_cast<std::size_t>(j));
+        if (d >= 0 && (depth[i] < 0 || d + 1 < depth[i])) {
+          depth[i] = d + 1;
+          changed = true;
+        }
+      }
+    }
+  }
+  return depth;
+}
+
 std::vector<FormationSlot> GenerateFormation(const FormationSpec& spec) {
   if (spec.count < 2)
     throw std::invalid_argument("[GenerateFormation] count must be >= 2, got " +
@@ -123,20 +142,11 @@ std::vector<FormationSlot> GenerateFormation(const FormationSpec& spec) {
       slots[i].ties.push_back({candidates[k], place[j].offset - place[i].offset});
     }
   }
-  // Graph depth: fewest ties from the leader (relaxed until no depth changes).
-  for (std::size_t i = 1; i < n; ++i) slots[i].depth = static_cast<int>(n);
-  for (bool changed = true; changed;) {
-    changed = false;
-    for (std::size_t i = 1; i < n; ++i) {
-      for (const FormationTie& t : slots[i].ties) {
-        const int d = slots[static_cast<std::size_t>(t.neighbour)].depth + 1;
-        if (d < slots[i].depth) {
-          slots[i].depth = d;
-          changed = true;
-        }
-      }
-    }
-  }
+  std::vector<std::vector<int>> neighbours(n);
+  for (std::size_t i = 0; i < n; ++i)
+    for (const FormationTie& t : slots[i].ties) neighbours[i].push_back(t.neighbour);
+  const std::vector<int> depth = TieDepths(neighbours, 0);
+  for (std::size_t i = 0; i < n; ++i) slots[i].depth = depth[i];
   return slots;
 }
 

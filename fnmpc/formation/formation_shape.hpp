@@ -36,6 +36,10 @@ struct FormationSlot {
   std::vector<FormationTie> ties;
 };
 
+/// Graph depth of every vehicle: the fewest formation ties from `leader` (0), following
+/// neighbours[i] (the vehicles i keeps offsets to); -1 when no chain of ties reaches it.
+std::vector<int> TieDepths(const std::vector<std::vector<int>>& neighbours, int leader);
+
 /// Places the vehicles of `spec` and ties them. The leader (slot 0) is at `origin`, the
 /// formation extends behind it (-x), and slots are numbered front to back. Slots are ranked
 /// (wedge and line: row; grid: row + column from the leader's corner; circle: leader 0, ring
