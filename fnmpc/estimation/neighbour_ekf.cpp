@@ -39,7 +39,10 @@ Mat3 SphericalJacobian(const Vec3& d) {
 
 void NeighbourEkfConfig::Validate() const {
   Require(max_lag >= 0.0 && std::isfinite(max_lag), "max_lag", max_lag, "must be >= 0");
-  Require(buffer_capacity >= 2, "buffer_capacity", buffer_capacity, "must be >= 2");
+  Require(buffer_capacity == 0 || buffer_capacity >= 2, "buffer_capacity", buffer_capacity,
+          "must be 0 (derived) or >= 2");
+  Require(own_velocity_rate_hz > 0.0 && std::isfinite(own_velocity_rate_hz), "own_velocity_rate_hz",
+          own_velocity_rate_hz, "must be finite and > 0");
   Require(accel_noise > 0.0, "accel_noise", accel_noise, "must be > 0");
   Require(yaw_accel_noise > 0.0, "yaw_accel_noise", yaw_accel_noise, "must be > 0");
   Require(own_velocity_noise >= 0.0, "own_velocity_noise", own_velocity_noise, "must be >= 0");
@@ -68,6 +71,12 @@ void NeighbourEkfConfig::Validate() const {
           "must be finite and > 0");
   Require(time_jump_reset_count >= 1, "time_jump_reset_count", time_jump_reset_count,
           "must be >= 1");
+}
+
+int NeighbourEkfConfig::BufferCapacity() const {
+  if (buffer_capacity > 0) return buffer_capacity;
+  const double relative = sensors.relative.enabled ? sensors.relative.rate_hz : 0.0;
+  return ReplayCapacity(max_lag, {relative, own_velocity_rate_hz});
 }
 
 void RelativeToCartesian(const RelativeObservation& o, const Vec3& own_euler,
@@ -137,7 +146,7 @@ Mat<4, 3> RelativeMeasurementOwnAttitudeJacobian(const NeighbourStateVec& x,
 }
 
 NeighbourEkf::NeighbourEkf(const NeighbourEkfConfig& config)
-    : config_(config), buffer_((config.Validate(), config.buffer_capacity), config.max_lag) {
+    : config_(config), buffer_((config.Validate(), config.BufferCapacity()), config.max_lag) {
   gate_ = Chi2Quantile(config_.gate_probability, 4);
   s_.x.setConstant(kNaN);
 }
@@ -204,6 +213,16 @@ NeighbourEstimate NeighbourEkf::EstimateAt(double t, const Vec3& own_velocity) c
   out.x = st.x;
   out.covariance = st.P;
   return out;
+}
+
+void NeighbourEkf::Retarget(int target) {
+  config_.target = target;
+  buffer_.Clear();
+  time_jump_.Reset();
+  const std::int64_t gate_resets = s_.gate_resets;
+  s_ = State{};
+  s_.x.setConstant(kNaN);
+  s_.gate_resets = gate_resets;
 }
 
 bool NeighbourEkf::TimeJumpRejected(double t) {

@@ -39,14 +39,17 @@ enum class RelativeUpdate : int {
 /// noise[0] * (1 + range_noise_growth * range), bearing noise[1], elevation noise[2],
 /// relative yaw noise2[0]).
 struct NeighbourEkfConfig {
-  SensorsConfig sensors;            ///< noise source (simulator defaults unless overridden)
-  int observer = -1;                ///< accept only measurements taken by this vehicle; -1 = any
-  int target = -1;                  ///< accept only observations of this neighbour; -1 = any
-  double max_lag = 0.3;             ///< replay window [s]
-  int buffer_capacity = 256;        ///< replay buffer entries (measurements + own-velocity samples)
-  double accel_noise = 0.5;         ///< neighbour acceleration white noise [m/s^2/sqrt(Hz)]
-  double yaw_accel_noise = 0.3;     ///< neighbour yaw acceleration white noise [rad/s^2/sqrt(Hz)]
-  double own_velocity_noise = 0.0;  ///< white error of the own velocity input [m/s*sqrt(s)]
+  SensorsConfig sensors;  ///< noise source (simulator defaults unless overridden)
+  int observer = -1;      ///< accept only measurements taken by this vehicle; -1 = any
+  int target = -1;        ///< accept only observations of this neighbour; -1 = any
+  double max_lag = 0.3;   ///< replay window [s]
+  /// Replay buffer entries (measurements + own-velocity samples); 0: ReplayCapacity of
+  /// max_lag for the relative sensor's rate and own_velocity_rate_hz (what the window holds).
+  int buffer_capacity = 0;
+  double own_velocity_rate_hz = 20.0;  ///< rate of PredictTo calls (the control rate) [Hz]
+  double accel_noise = 0.5;            ///< neighbour acceleration white noise [m/s^2/sqrt(Hz)]
+  double yaw_accel_noise = 0.3;       ///< neighbour yaw acceleration white noise [rad/s^2/sqrt(Hz)]
+  double own_velocity_noise = 0.0;    ///< white error of the own velocity input [m/s*sqrt(s)]
   double initial_velocity_std = 1.0;  ///< neighbour velocity std at initialisation [m/s]
   double initial_yaw_rate_std = 0.5;  ///< neighbour yaw rate std at initialisation [rad/s]
   double gate_probability = 0.99999;  ///< chi-square gate on the 4-dim NIS
@@ -67,6 +70,8 @@ struct NeighbourEkfConfig {
 
   /// Throws std::invalid_argument naming the first invalid field.
   void Validate() const;
+  /// The replay buffer's entries: buffer_capacity, or when 0 the derived size.
+  [[nodiscard]] int BufferCapacity() const;
 };
 
 /// Relative measurement model h(dx, psi_j; own euler) = (range, bearing, elevation,
@@ -141,6 +146,12 @@ class NeighbourEkf {
   [[nodiscard]] EkfCounters counters() const;
   /// Configuration in use.
   [[nodiscard]] const NeighbourEkfConfig& config() const { return config_; }
+  /// Replay buffer entries (fixed at construction).
+  [[nodiscard]] int buffer_capacity() const { return buffer_.capacity(); }
+  /// Forgets the tracked vehicle and tracks `target` instead (observations of other targets
+  /// are rejected from now on): state, buffer and time guard as after construction; the
+  /// counters keep counting. No heap allocation (a tracking slot's reuse).
+  void Retarget(int target);
 
  private:
   struct Event {

@@ -4,11 +4,27 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <initializer_list>
 #include <vector>
 
 #include "fnmpc/estimation/ekf_types.hpp"
 
 namespace fnmpc::estimation {
+
+/// Entries a ReplayBuffer with window `max_lag` [s] needs for event streams of the given
+/// rates [Hz] (regularly stamped; a rate <= 0 is a stream that is off): a stream at rate r
+/// has at most floor(max_lag r) + 1 stamps in a window of max_lag, taken here with a 25 %
+/// margin on r (a stream a little faster than configured); one more entry holds the
+/// snapshot before the window (Prune keeps it). Sized like this, in-order and late events
+/// within the window never evict one another (ReplayBuffer::overflows stays 0).
+inline int ReplayCapacity(double max_lag, std::initializer_list<double> rates_hz) {
+  constexpr double kRateMargin = 1.25;
+  int n = 1;
+  for (const double r : rates_hz) {
+    if (r > 0.0) n += static_cast<int>(std::floor(kRateMargin * max_lag * r)) + 1;
+  }
+  return std::max(n, 2);
+}
 
 /// Time-ordered ring buffer of recent events (measurements, inputs) and of the filter
 /// state *before* each event, used to fuse late and out-of-order events exactly.

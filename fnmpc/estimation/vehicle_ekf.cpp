@@ -52,7 +52,10 @@ Vec3 EffectiveRefs(const Vec3& refs, const model::VehicleParams& v) {
 
 void VehicleEkfConfig::Validate() const {
   Require(max_lag >= 0.0 && std::isfinite(max_lag), "max_lag", max_lag, "must be >= 0");
-  Require(buffer_capacity >= 2, "buffer_capacity", buffer_capacity, "must be >= 2");
+  Require(buffer_capacity == 0 || buffer_capacity >= 2, "buffer_capacity", buffer_capacity,
+          "must be 0 (derived) or >= 2");
+  Require(command_rate_hz > 0.0 && std::isfinite(command_rate_hz), "command_rate_hz",
+          command_rate_hz, "must be finite and > 0");
   Require(max_predict_dt > 0.0, "max_predict_dt", max_predict_dt, "must be > 0");
   Require(imu_timeout > 0.0, "imu_timeout", imu_timeout, "must be > 0");
   Require(command_timeout > 0.0, "command_timeout", command_timeout, "must be > 0");
@@ -210,10 +213,18 @@ Mat<3, VehicleStateIndex::kSize> LandedAccelJacobian(const VehicleStateVec& x) {
   return H;
 }
 
+int VehicleEkfConfig::BufferCapacity() const {
+  if (buffer_capacity > 0) return buffer_capacity;
+  const auto rate = [](const SensorSpec& s) { return s.enabled ? s.rate_hz : 0.0; };
+  return ReplayCapacity(max_lag,
+                        {rate(sensors.mocap), rate(sensors.imu), rate(sensors.optical_flow),
+                         rate(sensors.compass), command_rate_hz});
+}
+
 VehicleEkf::VehicleEkf(const VehicleEkfConfig& config, const model::VehicleParams& vehicle)
     : config_(config),
       vehicle_(vehicle),
-      buffer_((config.Validate(), config.buffer_capacity), config.max_lag) {
+      buffer_((config.Validate(), config.BufferCapacity()), config.max_lag) {
   vehicle_.Validate();
   for (int d = 1; d <= 6; ++d)
     gate_[static_cast<std::size_t>(d)] = Chi2Quantile(config_.gate_probability, d);

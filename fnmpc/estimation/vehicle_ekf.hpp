@@ -42,11 +42,14 @@ struct VehicleEkfConfig {
   double ground_height = 0.0;
 
   // Multi-rate handling.
-  double max_lag = 0.3;          ///< replay window: older measurements are dropped [s]
-  int buffer_capacity = 512;     ///< replay buffer entries (>= rates sum * max_lag)
-  double max_predict_dt = 0.01;  ///< longest single prediction sub-step [s]
-  double imu_timeout = 0.05;     ///< IMU older than this: constant-velocity fallback [s]
-  double command_timeout = 0.2;  ///< command older than this is not used [s]
+  double max_lag = 0.3;  ///< replay window: older measurements are dropped [s]
+  /// Replay buffer entries; 0: ReplayCapacity of max_lag for the enabled sensors' rates and
+  /// command_rate_hz (what the window holds).
+  int buffer_capacity = 0;
+  double command_rate_hz = 20.0;  ///< rate of SetCommand calls (the control rate) [Hz]
+  double max_predict_dt = 0.01;   ///< longest single prediction sub-step [s]
+  double imu_timeout = 0.05;      ///< IMU older than this: constant-velocity fallback [s]
+  double command_timeout = 0.2;   ///< command older than this is not used [s]
 
   // Process noise (continuous-time spectral densities, as std per sqrt(s)).
   double accel_bias_noise = 1e-3;        ///< accel bias random walk [m/s^2/sqrt(s)]
@@ -110,6 +113,8 @@ struct VehicleEkfConfig {
 
   /// Throws std::invalid_argument naming the first invalid field.
   void Validate() const;
+  /// The replay buffer's entries: buffer_capacity, or when 0 the derived size.
+  [[nodiscard]] int BufferCapacity() const;
 };
 
 /// Output of VehicleEkf::Estimate.

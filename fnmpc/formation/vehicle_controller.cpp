@@ -523,6 +523,7 @@ estimation::VehicleEkfConfig OwnEkfConfig(const ControllerConfig& c) {
   e.sensors = c.sensors;
   e.vehicle = c.vehicle;
   e.ground_height = c.leader ? c.ground_height : 0.0;
+  e.command_rate_hz = 1.0 / c.rti.sample_time;  // SetCommand once per control step
   return e;
 }
 
@@ -570,6 +571,7 @@ VehicleController::VehicleController(const ControllerConfig& config)
     nc.sensors = config_.sensors;
     nc.observer = config_.vehicle;
     nc.target = n.vehicle;
+    nc.own_velocity_rate_hz = 1.0 / config_.rti.sample_time;  // PredictTo once per step
     neighbour_ekfs_.emplace_back(nc);
   }
   for (int v : config_.sensed_vehicles) {
@@ -582,6 +584,7 @@ VehicleController::VehicleController(const ControllerConfig& config)
     nc.sensors = config_.sensors;
     nc.observer = config_.vehicle;
     nc.target = v;
+    nc.own_velocity_rate_hz = 1.0 / config_.rti.sample_time;
     other_vehicles_.push_back(v);
     other_ekfs_.emplace_back(nc);
   }

@@ -57,6 +57,7 @@ NeighbourEkfConfig TestConfig() {
   c.yaw_accel_noise = 0.2;
   c.initial_velocity_std = 0.5;
   c.initial_yaw_rate_std = 0.3;
+  c.own_velocity_rate_hz = 100.0;  // PredictTo every kPredictEvery grid steps
   return c;
 }
 
@@ -256,6 +257,65 @@ TEST(NeighbourEkfTest, LateAndOutOfOrderDeliveryEqualsInOrder) {
   const InputEvent& old = sc.events[mid];
   EXPECT_EQ(Feed(old, &late), EkfStatus::kRejectedTooOld);
   EXPECT_EQ(late.counters().Get(EkfStatus::kRejectedTooOld, SensorKind::kRelative), 1);
+}
+
+TEST(NeighbourEkfTest, DerivedBufferNeverOverflows) {
+  // Given the buffer derived from the rates (relative sensor 50 Hz, PredictTo 100 Hz): a
+  // tenth of the former fixed 256 entries,
+  const NeighbourEkfConfig cfg = TestConfig();
+  ASSERT_EQ(cfg.buffer_capacity, 0);
+  EXPECT_EQ(cfg.BufferCapacity(), ReplayCapacity(cfg.max_lag, {50.0, 100.0}));
+  EXPECT_EQ(NeighbourEkf(cfg).buffer_capacity(), cfg.BufferCapacity());
+  EXPECT_LT(cfg.BufferCapacity(), 64);
+  const Scenario sc = MakeScenario(cfg, 5, 8.0, 0.04);
+  std::vector<InputEvent> by_arrival = sc.events;
+  std::stable_sort(by_arrival.begin(), by_arrival.end(),
+                   [](const InputEvent& a, const InputEvent& b) { return a.arrival < b.arrival; });
+  // When measurements up to 40 ms late arrive for 8 s,
+  NeighbourEkf late(cfg);
+  for (const InputEvent& e : by_arrival) Feed(e, &late);
+  // then nothing was evicted (late ones were replayed),
+  EXPECT_GT(late.counters().replays, 100);
+  EXPECT_EQ(late.counters().buffer_overflows, 0);
+  // and a buffer sized for PredictTo at 40 Hz instead of 100 Hz does evict (the check can fail).
+  NeighbourEkfConfig small = cfg;
+  small.own_velocity_rate_hz = 40.0;
+  NeighbourEkf short_buffer(small);
+  for (const InputEvent& e : by_arrival) Feed(e, &short_buffer);
+  EXPECT_GT(short_buffer.counters().buffer_overflows, 0);
+}
+
+TEST(NeighbourEkfTest, RetargetStartsOverForAnotherVehicle) {
+  // Given a filter that tracked target 2 for 4 s,
+  const NeighbourEkfConfig cfg = TestConfig();
+  const Scenario sc = MakeScenario(cfg, 9, 4.0);
+  NeighbourEkf f(cfg), fresh(cfg);
+  for (const InputEvent& e : sc.events) Feed(e, &f);
+  ASSERT_TRUE(f.initialized());
+  const std::int64_t accepted = f.counters().Get(EkfStatus::kAccepted, SensorKind::kRelative);
+  // When it is given to target 5,
+  f.Retarget(5);
+  // then it has forgotten target 2 (uninitialised, its measurements rejected),
+  EXPECT_FALSE(f.initialized());
+  EXPECT_TRUE(f.state().array().isNaN().all());
+  const auto first = std::find_if(sc.events.begin(), sc.events.end(),
+                                  [](const InputEvent& e) { return e.is_measurement; });
+  ASSERT_NE(first, sc.events.end());
+  EXPECT_EQ(Feed(*first, &f), EkfStatus::kRejectedInvalid);
+  // target 5's measurements give exactly what a new filter of target 5 gives,
+  NeighbourEkfConfig c5 = cfg;
+  c5.target = 5;
+  NeighbourEkf new5(c5);
+  for (InputEvent e : sc.events) {
+    e.m.relative.target = 5;
+    Feed(e, &f);
+    Feed(e, &new5);
+  }
+  EXPECT_EQ(f.state(), new5.state());
+  EXPECT_EQ(f.covariance(), new5.covariance());
+  // and the counters went on counting.
+  EXPECT_EQ(f.counters().Get(EkfStatus::kAccepted, SensorKind::kRelative),
+            accepted + new5.counters().Get(EkfStatus::kAccepted, SensorKind::kRelative));
 }
 
 TEST(NeighbourEkfTest, OutliersAndInvalidMeasurementsRejectedAndCounted) {
