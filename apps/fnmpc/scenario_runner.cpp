@@ -54,12 +54,9 @@ formation::ControllerConfig ControllerConfigFor(const config::ScenarioConfig& sc
   c.weights = v.leader ? sc.leader_weights : sc.follower_weights;
   c.pid.max_thrust = sc.thrust_max;
   for (const auto& n : v.neighbours) c.neighbours.push_back({n.index, n.desired});
-  // Collision avoidance: every other vehicle the relative sensor may report.
-  if (v.sensors.relative.enabled) {
-    for (int j = 0; j < static_cast<int>(sc.vehicles.size()); ++j) {
-      if (j != i) c.sensed_vehicles.push_back(j);
-    }
-  }
+  // Collision avoidance: the other vehicles the relative sensor reports, in the tracking
+  // slots that `controller.max_tracked` leaves after the formation neighbours.
+  c.track_others = v.sensors.relative.enabled;
   c.frame = v.frame_control ? ocp::TargetFrame::kControl : ocp::TargetFrame::kInertial;
   c.relative_position_bound = v.relative_position_bound;
   c.trajectory = trajectory;

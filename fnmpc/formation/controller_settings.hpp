@@ -25,10 +25,17 @@ struct ControllerSettings {
   double landing_time = 1e9;
   double descent_speed = 0.3;
   bool use_throttle = true;
+  /// Most vehicles one controller tracks with a relative-sensor filter at once.
+  int max_tracked = 8;
 
   template <class Archive>
   void Serialize(Archive* a) {
     a->Nested("controller", &rti);
+    a->Visit("controller.max_tracked", &max_tracked, IntIn(1, 64),
+             "tracking slots per controller (relative-sensor filters, allocated at start): "
+             "formation neighbours always have one, the other vehicles in view share the "
+             "rest nearest first (collision avoidance); a slot is freed after "
+             "`safety.neighbour_timeout` without a measurement of its vehicle");
     a->Visit("controller.use_throttle", &use_throttle, AnyValue(),
              "true: command the collective throttle from the thrust and the measured battery "
              "voltage; false: the thrust");

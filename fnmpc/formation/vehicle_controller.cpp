@@ -41,6 +41,8 @@ void ControllerConfig::Validate() const {
   if (!(max_attitude_ref > 0.0 && max_attitude_ref < 1.2))
     fail("max_attitude_ref must be in (0, 1.2) rad");
   if (!(max_speed > 0.0)) fail("max_speed must be > 0");
+  if (max_tracked < 1 || max_tracked > 64)
+    fail("max_tracked must be in [1, 64], got " + std::to_string(max_tracked));
   safety.Validate();
   if (!leader) {
     if (neighbours.empty() || neighbours.size() > static_cast<std::size_t>(kMaxNeighbours)) {
@@ -544,6 +546,9 @@ constexpr int kMocapGateRun = 5;
 /// Consistency check: EKF velocity against the motion-capture rate [m/s], for [s].
 constexpr double kVelocityMismatch = 1.0;
 constexpr double kVelocityMismatchTime = 0.3;
+/// A vehicle in view takes the tracking slot of the farthest tracked one only when it is
+/// nearer by this much [m] (measured ranges; the range noise is centimetres).
+constexpr double kTrackSwapMargin = 0.5;
 /// Lateral shift of a sensed vehicle to the observer's left, as a fraction of r_min
 /// (NearestObstacles: the passing rule).
 constexpr double kPassingShift = 0.3;
@@ -574,24 +579,23 @@ VehicleController::VehicleController(const ControllerConfig& config)
     nc.own_velocity_rate_hz = 1.0 / config_.rti.sample_time;  // PredictTo once per step
     neighbour_ekfs_.emplace_back(nc);
   }
-  for (int v : config_.sensed_vehicles) {
-    const bool formation = std::any_of(config_.neighbours.begin(), config_.neighbours.end(),
-                                       [v](const NeighbourTarget& n) { return n.vehicle == v; });
-    if (formation || v == config_.vehicle ||
-        std::find(other_vehicles_.begin(), other_vehicles_.end(), v) != other_vehicles_.end())
-      continue;
+  // Tracking slots for the other vehicles in view: what max_tracked leaves after the
+  // formation neighbours, all built now (no allocation when they change hands).
+  const int others =
+      config_.track_others
+          ? std::max(0, config_.max_tracked - static_cast<int>(config_.neighbours.size()))
+          : 0;
+  tracks_.reserve(static_cast<std::size_t>(others));
+  for (int k = 0; k < others; ++k) {
     estimation::NeighbourEkfConfig nc;
     nc.sensors = config_.sensors;
     nc.observer = config_.vehicle;
-    nc.target = v;
     nc.own_velocity_rate_hz = 1.0 / config_.rti.sample_time;
-    other_vehicles_.push_back(v);
-    other_ekfs_.emplace_back(nc);
+    tracks_.push_back(Track{-1, kNaN, kInf, estimation::NeighbourEkf(nc), Presence{}});
   }
-  other_presence_.assign(other_vehicles_.size(), Presence{});
   const std::size_t nn = config_.neighbours.size();
   estimates_.neighbours.assign(nn, estimation::NeighbourStateVec::Constant(kNaN));
-  estimates_.others.assign(other_vehicles_.size(), estimation::NeighbourStateVec::Constant(kNaN));
+  estimates_.others.assign(tracks_.size(), estimation::NeighbourStateVec::Constant(kNaN));
   presence_.assign(nn, Presence{});
   // The solver is built here, not at the take-off -> NMPC switch: no allocation in flight.
   if (config_.leader) {
@@ -648,10 +652,14 @@ void VehicleController::Process(const Measurement& m) {
         filter = &neighbour_ekfs_[j];
         presence = &presence_[j];
       }
-      for (std::size_t j = 0; j < other_vehicles_.size() && !filter; ++j) {
-        if (other_vehicles_[j] != m.relative.target) continue;
-        filter = &other_ekfs_[j];
-        presence = &other_presence_[j];
+      Track* track = nullptr;
+      if (filter == nullptr && m.relative.target != config_.vehicle) {
+        track = TrackOf(m.relative.target, m.stamp, m.relative.range);
+        if (track != nullptr) {
+          filter = &track->ekf;
+          presence = &track->presence;
+          if (std::isfinite(m.relative.range)) track->range = m.relative.range;
+        }
       }
       if (filter == nullptr) break;
       const estimation::VehicleEstimate e = ekf_.Estimate(m.stamp);
@@ -663,6 +671,44 @@ void VehicleController::Process(const Measurement& m) {
       break;
     }
   }
+}
+
+// The slot of another vehicle in view: its own, else a free one (never given, or its vehicle
+// unmeasured for neighbour_timeout: out of view), else the slot of the farthest tracked
+// vehicle when this one is nearer by kTrackSwapMargin (nearest first, without two vehicles
+// at about the same range taking the slot from each other at every measurement). nullptr:
+// not tracked. The slot's filter restarts for its new vehicle; no allocation.
+VehicleController::Track* VehicleController::TrackOf(int vehicle, double stamp, double range) {
+  for (Track& k : tracks_) {
+    if (k.vehicle == vehicle) return &k;
+  }
+  if (!std::isfinite(stamp) || !std::isfinite(range)) return nullptr;
+  Track* slot = nullptr;
+  for (Track& k : tracks_) {
+    if (k.vehicle < 0 || TrackLost(k, stamp)) {
+      slot = &k;
+      break;
+    }
+  }
+  if (slot == nullptr) {
+    for (Track& k : tracks_) {
+      if (slot == nullptr || k.range > slot->range) slot = &k;
+    }
+    if (slot == nullptr || !(range + kTrackSwapMargin < slot->range)) return nullptr;
+  }
+  slot->vehicle = vehicle;
+  slot->assigned = stamp;
+  slot->range = range;
+  slot->presence = Presence{};
+  slot->ekf.Retarget(vehicle);
+  return slot;
+}
+
+// A tracked vehicle with no accepted measurement (or, never accepted, since its slot was
+// given) for neighbour_timeout at t: out of view; its slot is free.
+bool VehicleController::TrackLost(const Track& k, double t) const {
+  const double last = std::isfinite(k.presence.seen) ? k.presence.seen : k.assigned;
+  return !(t - last <= config_.safety.neighbour_timeout);
 }
 
 void VehicleController::Presence::Accept(double stamp, double max_gap) {
@@ -677,8 +723,8 @@ std::int64_t VehicleController::estimator_rejections() const {
     n += ekf_.counters().Total(static_cast<estimation::EkfStatus>(s));
     for (const auto& f : neighbour_ekfs_)
       n += f.counters().Total(static_cast<estimation::EkfStatus>(s));
-    for (const auto& f : other_ekfs_)
-      n += f.counters().Total(static_cast<estimation::EkfStatus>(s));
+    for (const Track& k : tracks_)
+      n += k.ekf.counters().Total(static_cast<estimation::EkfStatus>(s));
   }
   return n;
 }
@@ -841,28 +887,34 @@ void VehicleController::NearestObstacles(double t, Input* in) const {
   for (std::size_t j = 0; j < estimates_.neighbours.size(); ++j) {
     offer(estimates_.neighbours[j], presence_[j].seen);
   }
-  for (std::size_t j = 0; j < estimates_.others.size(); ++j)
-    offer(estimates_.others[j], other_presence_[j].seen);
+  for (std::size_t k = 0; k < tracks_.size(); ++k)
+    offer(estimates_.others[k], tracks_[k].presence.seen);
 }
 
 ControlOutput VehicleController::Control(double t) {
   estimates_.own = ekf_.initialized() ? ekf_.Estimate(t) : estimation::VehicleEstimate{};
   const estimation::VehicleEstimate& own = estimates_.own;
   // Every tracked vehicle predicted to t (NaN while its filter has nothing to go on).
-  const auto predict = [&](std::vector<estimation::NeighbourEkf>& filters,
-                           std::vector<estimation::NeighbourStateVec>& out) {
-    for (std::size_t j = 0; j < filters.size(); ++j) {
-      auto& f = filters[j];
-      if (f.initialized() && own.valid && own.velocity.allFinite()) {
-        f.PredictTo(t, own.velocity);
-        out[j] = f.StateAt(t, own.velocity);
-      } else {
-        out[j].setConstant(kNaN);
-      }
+  const auto predict = [&](estimation::NeighbourEkf& f, estimation::NeighbourStateVec& out) {
+    if (f.initialized() && own.valid && own.velocity.allFinite()) {
+      f.PredictTo(t, own.velocity);
+      out = f.StateAt(t, own.velocity);
+    } else {
+      out.setConstant(kNaN);
     }
   };
-  predict(neighbour_ekfs_, estimates_.neighbours);
-  predict(other_ekfs_, estimates_.others);
+  for (std::size_t j = 0; j < neighbour_ekfs_.size(); ++j) {
+    predict(neighbour_ekfs_[j], estimates_.neighbours[j]);
+  }
+  for (std::size_t k = 0; k < tracks_.size(); ++k) {
+    Track& track = tracks_[k];
+    if (track.vehicle >= 0 && TrackLost(track, t)) track.vehicle = -1;  // out of view: free
+    if (track.vehicle >= 0) {
+      predict(track.ekf, estimates_.others[k]);
+    } else {
+      estimates_.others[k].setConstant(kNaN);
+    }
+  }
   UpdateNeighbourPresence(t);
   CheckVelocityConsistency(t);
   const ControlOutput out = Step(t);

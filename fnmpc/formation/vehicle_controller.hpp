@@ -53,10 +53,10 @@ struct ControllerConfig : ControllerSettings {
   model::VehicleParams params;  ///< vehicle model (mass, attitude model, throttle polynomial)
   SensorsConfig sensors;        ///< sensor noise for the estimators
   NmpcWeights weights;
-  /// Other vehicles the relative sensor may see, tracked for collision avoidance only (a
-  /// formation neighbour listed here is ignored: it is tracked anyway). Empty: only the
-  /// formation neighbours are avoided.
-  std::vector<int> sensed_vehicles;
+  /// Track the other vehicles the relative sensor reports (not formation neighbours) for
+  /// collision avoidance, in the max_tracked - (neighbour count) slots left; false: only the
+  /// formation neighbours are tracked and avoided.
+  bool track_others = false;
   // Follower only.
   std::vector<NeighbourTarget> neighbours;               ///< 1 to kMaxNeighbours, distinct
   ocp::TargetFrame frame = ocp::TargetFrame::kInertial;  ///< frame of `desired`
@@ -102,7 +102,9 @@ struct ControlOutput {
 struct ControllerEstimates {
   estimation::VehicleEstimate own;
   std::vector<estimation::NeighbourStateVec> neighbours;  ///< NeighbourStateIndex layout
-  std::vector<estimation::NeighbourStateVec> others;  ///< sensed_vehicles that are not neighbours
+  /// Per tracking slot of the other vehicles (VehicleController::tracked_vehicle): its
+  /// estimate, NaN while the slot is free or its filter has nothing to go on.
+  std::vector<estimation::NeighbourStateVec> others;
 };
 
 class NmpcCore;  // leader or reduced follower solver (vehicle_controller.cpp)
@@ -148,6 +150,11 @@ class VehicleController {
   [[nodiscard]] RecoveryReason failsafe_reason() const { return failsafe_reason_; }
   /// Follower: whether neighbour j (configuration order) is in the cost.
   [[nodiscard]] bool neighbour_active(std::size_t j) const { return presence_.at(j).active; }
+  /// Tracking slots for the other vehicles in view (max_tracked minus the formation
+  /// neighbours, or 0 without track_others).
+  [[nodiscard]] int other_slots() const { return static_cast<int>(tracks_.size()); }
+  /// Vehicle tracked in slot k of the others, -1 when the slot is free.
+  [[nodiscard]] int tracked_vehicle(int k) const { return tracks_.at(k).vehicle; }
   /// Estimates used by the last Control() call.
   [[nodiscard]] const ControllerEstimates& estimates() const { return estimates_; }
   /// Start of the NMPC phase [s] (NaN before).
@@ -179,10 +186,6 @@ class VehicleController {
   ControllerConfig config_;
   estimation::VehicleEkf ekf_;
   std::vector<estimation::NeighbourEkf> neighbour_ekfs_;
-  // Collision avoidance: filters of the sensed vehicles that are not formation neighbours,
-  // with the stamp of their last accepted measurement.
-  std::vector<int> other_vehicles_;
-  std::vector<estimation::NeighbourEkf> other_ekfs_;
   /// Presence of a tracked vehicle, from the relative measurements its filter accepted.
   struct Presence {
     double seen = kNaN;            // stamp of the last accepted measurement [s]
@@ -194,7 +197,19 @@ class VehicleController {
     /// Records an acceptance at `stamp`; a gap longer than `max_gap` starts a new run.
     void Accept(double stamp, double max_gap);
   };
-  std::vector<Presence> other_presence_;
+  /// A tracking slot for another vehicle in view (collision avoidance): the vehicle (-1:
+  /// free), when the slot was given to it and its last measured range.
+  struct Track {
+    int vehicle = -1;
+    double assigned = kNaN;  // [s]
+    double range = kInf;     // [m]
+    estimation::NeighbourEkf ekf;
+    Presence presence;
+  };
+  // Fixed pool (built with the controller): no allocation when slots change hands.
+  std::vector<Track> tracks_;
+  Track* TrackOf(int vehicle, double stamp, double range);
+  bool TrackLost(const Track& k, double t) const;
   std::unique_ptr<NmpcCore> nmpc_;
   TakeoffPid pid_;
   FlightPhase phase_ = FlightPhase::kIdle;

@@ -16,6 +16,7 @@
 #include <stdexcept>
 
 #include "fnmpc/core/rotation.hpp"
+#include "fnmpc/sim/cell_list.hpp"
 
 namespace fnmpc::sim {
 
@@ -170,6 +171,9 @@ void WorldConfig::Validate() const {
           "[World] gravity must be >= 0, got " + std::to_string(gravity));
   Require(drag_coefficient.allFinite() && (drag_coefficient.array() >= 0.0).all(),
           "[World] drag_coefficient must be >= 0");
+  Require(relative_index_min_vehicles >= 0,
+          "[World] relative_index_min_vehicles must be >= 0, got " +
+              std::to_string(relative_index_min_vehicles));
   const BatterySettings& b = battery;
   Require(b.full_voltage > b.empty_voltage && b.empty_voltage > 0.0,
           "[World] battery needs full_voltage > empty_voltage > 0, got " +
@@ -356,6 +360,13 @@ struct World::Impl {
   std::vector<double> total_thrust;
   std::vector<WakeHistory> wakes;            // reality.wake: one per vehicle
   std::vector<WakeFluctuation> fluctuation;  // reality.wake: [source * n + observer]
+  // Relative sensing through a cell list (config.relative_index_min_vehicles): the grid of
+  // the positions at step `cells_step`, its cell side (0: every pair is tested) and scratch.
+  CellList cells;
+  std::int64_t cells_step = -1;
+  double cell_side = 0.0;
+  std::vector<Vec3> cell_positions;
+  std::vector<int> near;
 
   ~Impl() {
     if (d != nullptr) mj_deleteData(d);
@@ -537,6 +548,31 @@ struct World::Impl {
     v.attitude_estimate = Eigen::Quaterniond(v.attitude_estimate).normalized().toRotationMatrix();
   }
 
+  // Candidates for the relative sensor of an observer at p within `range` [m] into `near`
+  // (true), from the cell list of this step's positions, built on first use; false: test
+  // every vehicle (too few vehicles, no finite range, or a non-finite position).
+  bool NearVehicles(const Vec3& p, double range) {
+    const int n = static_cast<int>(vehicles.size());
+    if (!(cell_side > 0.0) || n < config.relative_index_min_vehicles || !(range <= cell_side)) {
+      return false;
+    }
+    if (cells_step != step) {
+      cell_positions.resize(static_cast<std::size_t>(n));
+      bool finite = true;
+      for (int j = 0; j < n; ++j) {
+        cell_positions[j] = Position(vehicles[j]);
+        finite = finite && cell_positions[j].allFinite();
+      }
+      if (!finite) return false;
+      cells.Build(cell_positions, cell_side);
+      cells_step = step;
+    }
+    if (!p.allFinite()) return false;
+    // The body-frame range equals the world distance up to rounding: a small margin.
+    cells.Near(p, range * (1.0 + 1e-9) + 1e-9, &near);
+    return true;
+  }
+
   void Push(const Measurement& meas) {
     queue.push_back({meas, seq++});
     std::push_heap(queue.begin(), queue.end(), Later);
@@ -584,7 +620,13 @@ struct World::Impl {
       if (meas.kind == SensorKind::kRelative) {
         const Vec3 p_obs = Position(v);
         const double yaw_obs = EulerOf(rot_wb).z();
-        for (int j = 0; j < static_cast<int>(vehicles.size()); ++j) {
+        // Every vehicle in ascending index order, or the cell list's candidates (ascending, a
+        // superset of those within max_range): the same draws in the same order.
+        const bool indexed = NearVehicles(p_obs, s.max_range);
+        const int count =
+            indexed ? static_cast<int>(near.size()) : static_cast<int>(vehicles.size());
+        for (int k = 0; k < count; ++k) {
+          const int j = indexed ? near[static_cast<std::size_t>(k)] : k;
           if (j == vi) continue;
           const Vec3 d_b = rot_wb.transpose() * (Position(vehicles[j]) - p_obs);
           const double range = d_b.norm();
@@ -876,6 +918,16 @@ World::World(const WorldConfig& config) : impl_(std::make_unique<Impl>()) {
   const int n = static_cast<int>(config.vehicles.size());
   w.vehicles.resize(n);
   w.rot.assign(n, Mat3::Identity());
+  // Cell side of the relative-sensing grid: the largest range of an enabled relative sensor
+  // (0, every pair tested, when one of them is unbounded).
+  for (const VehicleSpec& spec : config.vehicles) {
+    const SensorSpec& r = spec.sensors.relative;
+    if (!r.enabled) continue;
+    w.cell_side = std::isfinite(r.max_range) && w.cell_side >= 0.0
+                      ? std::max(w.cell_side, r.max_range)
+                      : -1.0;
+  }
+  w.cell_side = std::max(w.cell_side, 0.0);
   w.total_thrust.assign(n, 0.0);
   std::seed_seq gust_seed{static_cast<std::uint32_t>(config.seed),
                           static_cast<std::uint32_t>(config.seed >> 32), 0xFFFFu};

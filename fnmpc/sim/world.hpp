@@ -184,6 +184,11 @@ struct WorldConfig {
   AeroRealitySettings reality;             ///< aerodynamic reality models (off: ideal plant)
   SensorRealitySettings sensor_reality;    ///< sensor and autopilot reality (off: ideal)
   std::uint64_t seed = 1;                  ///< all noise, dropouts and gusts derive from it
+  /// With at least this many vehicles, relative sensing looks up the vehicles near each
+  /// observer in a uniform grid (sim/cell_list.hpp, cells of the largest `max_range`) instead
+  /// of testing every pair; the measurements are the same (tests/sim/cell_list_test.cpp).
+  /// Every pair is tested when some enabled relative sensor has an infinite `max_range`.
+  int relative_index_min_vehicles = 32;
 
   /// Throws std::invalid_argument with context on a bad value (also checks each
   /// vehicle's params and sensors).

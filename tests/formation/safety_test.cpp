@@ -3,6 +3,7 @@
 // failsafe controller, neighbour loss, and no allocation in flight (malloc level).
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -274,6 +275,63 @@ TEST(SafetyTest, NoAllocationFromTakeoffToLanding) {
   EXPECT_EQ(n, 0);
   EXPECT_EQ(leader.phase(), FlightPhase::kLanded);
   EXPECT_EQ(follower.phase(), FlightPhase::kLanded);
+}
+
+TEST(SafetyTest, TrackingSlotsChangeHandsWithoutAllocation) {
+  // Given a follower with one formation neighbour (vehicle 0) and max_tracked 3: two slots
+  // for the other vehicles in view, its own filter started by a compass reading,
+  ControllerConfig fc = BaseConfig(false);
+  fc.track_others = true;
+  fc.max_tracked = 3;
+  VehicleController c(fc);
+  ASSERT_EQ(c.other_slots(), 2);
+  auto measure = [&](double t, SensorKind kind, int target, double range) {
+    Measurement m;
+    m.kind = kind;
+    m.vehicle = 1;
+    m.stamp = m.arrival = t;
+    m.yaw = 0.0;
+    m.relative = {target, range, 0.3 * target, 0.0, 0.1};
+    c.Process(m);
+  };
+  measure(0.0, SensorKind::kCompass, -1, kNaN);
+  std::array<std::array<int, 2>, 3> slots{};  // at t = 1, 3 and 6.5 s (no allocation)
+  int checks = 0;
+  // When vehicles come into and leave its view (at 50 Hz): 5 (3 m) and 6 (4 m) first; from
+  // 2 s 6 is gone and 7 (1.5 m) is there; from 4 s 5 is gone and 8 (5 m) is there, with
+  // Control every 0.05 s,
+  const long n = ::fnmpc::testing::CountMallocs([&] {
+    for (int k = 1; k <= 350; ++k) {
+      const double t = 0.02 * k;
+      measure(t, SensorKind::kCompass, -1, kNaN);
+      measure(t, SensorKind::kRelative, 0, 2.0);
+      if (t < 4.0) measure(t, SensorKind::kRelative, 5, 3.0);
+      if (t < 2.0) measure(t, SensorKind::kRelative, 6, 4.0);
+      if (t >= 2.0) measure(t, SensorKind::kRelative, 7, 1.5);
+      if (t >= 4.0) measure(t, SensorKind::kRelative, 8, 5.0);
+      if (k % 5 == 0) c.Control(t);
+      if (k == 50 || k == 150 || k == 325) {
+        slots[checks++] = {c.tracked_vehicle(0), c.tracked_vehicle(1)};
+      }
+    }
+  });
+  // then no C allocation call was made,
+  EXPECT_EQ(n, 0);
+  // the first two took the slots, 7 (nearer by more than the margin) took the farthest one's
+  // (6), 8 waited until 5 had been unmeasured for neighbour_timeout and took its slot.
+  ASSERT_EQ(checks, 3);
+  EXPECT_EQ(slots[0], (std::array<int, 2>{5, 6}));
+  EXPECT_EQ(slots[1], (std::array<int, 2>{5, 7}));
+  EXPECT_EQ(slots[2], (std::array<int, 2>{8, 7}));
+}
+
+TEST(SafetyTest, MaxTrackedIsChecked) {
+  ControllerConfig fc = BaseConfig(false);
+  fc.max_tracked = 0;
+  EXPECT_THROW(VehicleController{fc}, std::invalid_argument);
+  fc.max_tracked = 1;  // the formation neighbour keeps its slot; none is left for others
+  fc.track_others = true;
+  EXPECT_EQ(VehicleController(fc).other_slots(), 0);
 }
 
 }  // namespace
