@@ -4,11 +4,12 @@
 resident memory of `fnmpc run` for growing generated formations.
 
   scripts/scaling-bench.py [--fnmpc build/apps/fnmpc/fnmpc] [--counts 2 3 10 25 50 100]
-                           [--shape grid] [--duration 40] [--repeat 1]
+                           [--shape grid] [--duration 40] [--repeat 1] [--threads 2]
 
 Each count flies a generated formation (`formation:` block, docs/scenarios.md) of the
 given shape, 2.5 m spacing, two ties per follower, the leader on 4 s legs, for --duration
-simulated seconds, one `fnmpc run` process per count (single-threaded). Real-time factor:
+simulated seconds, one `fnmpc run` process per count with --threads threads for its vehicles'
+estimators and controllers (default: every CPU; `fnmpc run --threads`). Real-time factor:
 simulated time / wall time of the process; memory: the process's peak resident set
 (getrusage). Prints a Markdown table; the figures depend on the machine and its load."""
 import argparse
@@ -42,10 +43,11 @@ phases:
 """
 
 
-def run(fnmpc, scenario, out):
+def run(fnmpc, scenario, out, threads):
     """Wall time [s], peak RSS [MiB] and exit code of one `fnmpc run`."""
     t0 = time.perf_counter()
-    p = subprocess.Popen([fnmpc, "run", str(scenario), "-q", "-o", str(out)],
+    p = subprocess.Popen([fnmpc, "run", str(scenario), "-q", "-o", str(out),
+                          "--threads", str(threads)],
                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     _, status, usage = os.wait4(p.pid, 0)
     wall = time.perf_counter() - t0
@@ -61,13 +63,16 @@ def main():
     ap.add_argument("--shape", default="grid", choices=["wedge", "line", "grid", "circle"])
     ap.add_argument("--duration", type=float, default=40.0, help="simulated seconds (>= 30)")
     ap.add_argument("--repeat", type=int, default=1, help="runs per count; the fastest counts")
+    ap.add_argument("--threads", type=int, default=os.cpu_count() or 1,
+                    help="fnmpc run --threads (default: every CPU)")
     args = ap.parse_args()
     if not Path(args.fnmpc).is_file():
         sys.exit(f"scaling-bench: {args.fnmpc}: no such executable (build it, or --fnmpc)")
     if args.duration < 30:
         sys.exit("scaling-bench: --duration must be >= 30 s (take-off, one leg, landing)")
     print(f"scaling-bench: {args.fnmpc}, {args.shape}, {args.duration:g} s simulated, "
-          f"best of {args.repeat}, {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}")
+          f"best of {args.repeat}, --threads {args.threads}, {os.cpu_count()} CPUs, "
+          f"load {os.getloadavg()[0]:.1f}")
     print("| vehicles | wall [s] | real-time factor | peak memory [MiB] | per vehicle [MiB] | exit |")
     print("|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory(prefix="fnmpc-scale-") as tmp:
@@ -79,7 +84,7 @@ def main():
             best = None
             for k in range(args.repeat):
                 out = Path(tmp) / f"run-{count}-{k}"
-                wall, rss, code, err = run(args.fnmpc, scenario, out)
+                wall, rss, code, err = run(args.fnmpc, scenario, out, args.threads)
                 if code not in (0, 3):
                     sys.exit(f"scaling-bench: {count} vehicles: fnmpc run exited {code}:\n{err}")
                 if best is None or wall < best[0]:

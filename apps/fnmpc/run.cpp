@@ -4,12 +4,14 @@
 #include <fmt/chrono.h>
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <chrono>
 #include <csignal>
 #include <ctime>
 #include <filesystem>
 #include <memory>
 #include <stdexcept>
+#include <thread>
 
 #include "apps/fnmpc/commands.hpp"
 #include "apps/fnmpc/formation_print.hpp"
@@ -30,6 +32,7 @@ struct RunArgs {
   std::string out;
   int runs = 1;
   int jobs = 1;
+  int threads = 0;  // 0: the CPUs left per job
   long long seed = -1;
   double duration = -1.0;
   CLI::Option* duration_option = nullptr;
@@ -67,6 +70,12 @@ void PrepareRunFolder(const std::string& dir, bool overwrite) {
   fs::create_directories(dir);
 }
 
+/// Threads per run by default: the machine's CPUs shared by the jobs, at least 1.
+int AutoThreads(int jobs) {
+  const int cpus = static_cast<int>(std::thread::hardware_concurrency());
+  return std::max(1, (cpus > 0 ? cpus : 1) / std::max(1, jobs));
+}
+
 int Run(const RunArgs& a) {
   config::ScenarioConfig sc = config::LoadScenarioFile(a.scenario);
   if (a.duration_option != nullptr && a.duration_option->count() > 0) {
@@ -97,6 +106,7 @@ int Run(const RunArgs& a) {
   RunFolderOptions options;
   options.runs = a.runs;
   options.jobs = a.jobs;
+  options.threads = a.threads > 0 ? a.threads : AutoThreads(a.jobs);
   options.seed = a.seed;
   options.progress = !a.quiet;
   options.scenario_file = a.scenario;
@@ -144,6 +154,11 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
   sub->add_option("-j,--jobs", a->jobs,
                   "runs flown at the same time, one thread each; the run folder is the same as "
                   "with --jobs 1")
+      ->check(CLI::Range(1, 256));
+  sub->add_option("--threads", a->threads,
+                  "threads per run for its vehicles' estimators and controllers (default: the "
+                  "CPUs divided by --jobs); the run folder is the same whatever the count, "
+                  "timing columns aside")
       ->check(CLI::Range(1, 256));
   sub->add_option("--seed", a->seed, "first noise seed (default: the scenario's)")
       ->check(CLI::Range(0LL, 1LL << 53));

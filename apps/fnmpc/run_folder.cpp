@@ -34,6 +34,10 @@ nlohmann::json RunFolder(const config::ScenarioConfig& sc, const RunFolderOption
     std::filesystem::copy_file(options.scenario_file, PathInside(dir, "scenario.yaml"),
                                std::filesystem::copy_options::overwrite_existing);
   }
+  if (options.threads < 1) {
+    throw std::invalid_argument("RunFolder: threads must be >= 1, got " +
+                                std::to_string(options.threads));
+  }
   if (options.jobs < 1) {
     throw std::invalid_argument("RunFolder: jobs must be >= 1, got " +
                                 std::to_string(options.jobs));
@@ -54,6 +58,7 @@ nlohmann::json RunFolder(const config::ScenarioConfig& sc, const RunFolderOption
       o.progress = options.progress;
       o.label = fmt::format("[{} run {}/{} seed {}]", sc.name, r + 1, options.runs, o.seed);
       o.stop = options.stop;
+      o.threads = options.threads;
       nlohmann::json s = RunScenario(sc, o, fmt::format("{}/run-{:02d}", dir, r + 1));
       s["dir"] = fmt::format("run-{:02d}", r + 1);
       const std::lock_guard<std::mutex> lock(print_mutex);

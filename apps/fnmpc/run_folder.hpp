@@ -15,7 +15,8 @@ namespace fnmpc::app {
 
 struct RunFolderOptions {
   int runs = 1;               ///< runs with seeds seed, seed + 1, ...
-  int jobs = 1;               ///< runs flown at the same time, one thread each (>= 1)
+  int jobs = 1;               ///< runs flown at the same time (>= 1)
+  int threads = 1;            ///< threads per run for its vehicles (RunOptions::threads, >= 1)
   std::int64_t seed = -1;     ///< first seed; < 0: the scenario's
   bool progress = false;      ///< progress and one result line per run on stderr
   std::string scenario_file;  ///< copied to <dir>/scenario.yaml when it names a file
@@ -29,7 +30,7 @@ struct RunFolderOptions {
 /// <dir>/summary.json atomically: AggregateRuns plus `scenario_file`, `runs_requested` and
 /// `complete` (false when stopped, when the simulator failed, which ends the folder after that run,
 /// or when fewer runs than requested were done). Returns that summary. Throws std::invalid_argument
-/// on runs < 1 or jobs < 1 and std::runtime_error when the folder cannot be written.
+/// on runs < 1, jobs < 1 or threads < 1 and std::runtime_error when the folder cannot be written.
 nlohmann::json RunFolder(const config::ScenarioConfig& scenario, const RunFolderOptions& options,
                          const std::string& dir);
 

@@ -12,6 +12,7 @@
 #include "apps/fnmpc/fault_injector.hpp"
 #include "apps/fnmpc/output_files.hpp"
 #include "apps/fnmpc/run_log.hpp"
+#include "apps/fnmpc/worker_pool.hpp"
 #include "fnmpc/formation/trajectory.hpp"
 #include "fnmpc/formation/vehicle_controller.hpp"
 #include "fnmpc/sim/world.hpp"
@@ -75,6 +76,21 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
   std::vector<formation::ControlOutput> prev(nv);
   Measurement m;
   int next_progress = 0;
+  // Each vehicle's measurements since its last control step, in delivery order: its own
+  // thread feeds them to its controller just before the step (the same calls in the same
+  // order as feeding them at delivery: nothing else reaches a controller in between).
+  std::vector<std::vector<Measurement>> inbox(static_cast<std::size_t>(nv));
+  const auto feed = [&](int i) {
+    if (ctrl[i] && !killed[i]) {
+      for (const Measurement& x : inbox[i]) ctrl[i]->Process(x);
+    }
+    inbox[i].clear();
+  };
+  // The vehicles' estimators and controllers of one control step run on these threads; each
+  // task touches only its own vehicle's controller, inbox and output.
+  WorkerPool pool(std::max(1, std::min(options.threads, nv)));
+  std::vector<formation::ControlOutput> outs(static_cast<std::size_t>(nv));
+  std::vector<char> killed_now(static_cast<std::size_t>(nv), 0);
 
   for (int step = 0; step <= steps; ++step) {
     if (options.stop != nullptr && *options.stop != 0) {
@@ -117,9 +133,10 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
       prev_vz[i] = x.velocity.z();
     }
     while (world.PopMeasurement(&m)) {
-      if (!injector.Filter(&m)) continue;
-      for (int i = 0; i < nv; ++i) {
-        if (ctrl[i] && !killed[i]) ctrl[i]->Process(m);
+      if (!injector.Filter(&m)) continue;  // in delivery order: its random stream is shared
+      // Only the carrying vehicle's controller uses a measurement.
+      if (m.vehicle >= 0 && m.vehicle < nv && ctrl[m.vehicle] && !killed[m.vehicle]) {
+        inbox[m.vehicle].push_back(m);
       }
     }
     if (step % every == 0) {
@@ -147,15 +164,30 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
       } else if (ctrl[sc.leader] && ctrl[sc.leader]->anchor().allFinite()) {
         leader_ref = ctrl[sc.leader]->anchor() + ref_off;
       }
+      // In parallel, per vehicle: its measurements, the kill fault, its control step and
+      // the diagnostics (after the command in a real system; the world only gets the
+      // command below, in vehicle order, so the order does not matter here).
+      pool.ForEach(nv, [&](int i) {
+        feed(i);
+        killed_now[i] = 0;
+        if (faults.kill_controller.index == i && !killed[i] &&
+            t >= faults.kill_controller.time - 1e-9) {
+          killed[i] = 1;  // no more Process, Control or SetCommand: the autopilot is alone
+          killed_now[i] = 1;
+        }
+        outs[i] = formation::ControlOutput{};
+        if (!killed[i] && ctrl[i]) {
+          outs[i] = ctrl[i]->Control(t);
+          ctrl[i]->Diagnose(&outs[i]);
+        }
+      });
       for (int i = 0; i < nv; ++i) {
         const auto& v = sc.vehicles[i];
         VehicleRecord& L = rec.vehicles[i];
         const bool window = t >= sc.trajectory_start && t < config::LandingTime(sc, i);
         const bool steady = window && settled;
         formation::ControlOutput out;
-        if (faults.kill_controller.index == i && !killed[i] &&
-            t >= faults.kill_controller.time - 1e-9) {
-          killed[i] = 1;  // no more Process, Control or SetCommand: the autopilot is alone
+        if (killed_now[i]) {
           if (options.progress) {
             std::fprintf(stderr, "\n%s t = %.2f s: controller of %s killed (fault)\n",
                          options.label.c_str(), t, v.name.c_str());
@@ -169,7 +201,7 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
           }
           L.motors_off = truth[i].rotor_rpm.norm() < 1.0;
         } else if (ctrl[i]) {
-          out = ctrl[i]->Control(t);
+          out = outs[i];
           sim::AttitudeCommand cmd;
           cmd.thrust = out.thrust;
           cmd.throttle = out.throttle;
@@ -177,7 +209,6 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
           cmd.pitch = out.pitch;
           cmd.yaw = out.yaw;
           world.SetCommand(i, cmd);
-          ctrl[i]->Diagnose(&out);  // after the command: not on the command path
           if (out.recovery == formation::RecoveryAction::kReinitialise) ++L.reinitialisations;
           if (out.recovery == formation::RecoveryAction::kFailsafe) {
             L.failsafe_time = t;
@@ -306,6 +337,9 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
       }
     }
   }
+  // Measurements delivered after the last control step still count in the estimators'
+  // rejection totals.
+  pool.ForEach(nv, feed);
   if (options.progress)
     std::fprintf(stderr, "\r%s t = %5.1f / %.1f s\n", options.label.c_str(), duration, duration);
   for (VehicleCsvLog& log : csv) log.Finish();

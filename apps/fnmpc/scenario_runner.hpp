@@ -52,6 +52,9 @@ struct RunOptions {
   double duration = -1.0;  ///< simulated time [s]; < 0: the scenario's
   bool progress = false;   ///< print progress to stderr
   std::string label;       ///< progress prefix
+  /// Threads flying the vehicles' estimators and controllers of one control step (>= 1); the
+  /// run is the same bit for bit whatever the count (timing columns aside).
+  int threads = 1;
   /// When given and set (a signal handler), the run stops after the current physics step,
   /// writes what is complete and returns a summary with "complete": false.
   const volatile std::sig_atomic_t* stop = nullptr;

@@ -102,5 +102,52 @@ TEST(RunJobsTest, ParallelRunsWriteTheSameFolderAsOneJob) {
   fs::remove_all(base);
 }
 
+// Every CSV of folder `a` equals the one of the same name in `b`, timings aside; returns how
+// many were compared.
+int CompareCsvs(const std::string& a, const std::string& b) {
+  int csvs = 0;
+  for (const auto& e : fs::recursive_directory_iterator(a)) {
+    if (e.path().extension() != ".csv") continue;
+    const std::string rel = fs::relative(e.path(), a).string();
+    EXPECT_TRUE(fs::exists(b + "/" + rel)) << rel;
+    EXPECT_EQ(CsvWithoutTimings(e.path().string()), CsvWithoutTimings(b + "/" + rel)) << rel;
+    ++csvs;
+  }
+  return csvs;
+}
+
+TEST(RunJobsTest, ThreadsPerRunWriteTheSameFolderAsOne) {
+  // Given the 10-vehicle wedge shortened to 25 s with 4 tracking slots per controller (the
+  // slots change hands) and one follower's controller killed at 18 s,
+  config::ScenarioConfig sc = config::LoadScenarioFile(
+      std::string(FNMPC_SOURCE_DIR) + "/config/scenarios/stress/wedge10-fast.yaml");
+  sc = Shortened(sc, 25.0);
+  sc.max_tracked = 4;
+  sc.faults.kill_controller.vehicle = sc.vehicles[4].name;
+  sc.faults.kill_controller.index = 4;
+  sc.faults.kill_controller.time = 18.0;
+  const std::string base = testing::TempDir() + "/fnmpc-threads-" + std::to_string(getpid());
+  fs::remove_all(base);
+  RunFolderOptions o;
+  o.seed = 3;
+  // when flown with one thread and with three,
+  o.threads = 1;
+  RunFolder(sc, o, base + "/one");
+  o.threads = 3;
+  RunFolder(sc, o, base + "/three");
+  // then the summaries and every CSV agree, timings aside,
+  const json one = Summary(base + "/one/summary.json");
+  EXPECT_EQ(one, Summary(base + "/three/summary.json"));
+  EXPECT_EQ(CompareCsvs(base + "/one", base + "/three"), 10);
+  // and the run did fly (the killed controller's vehicle was landed by its autopilot).
+  const json run = Summary(base + "/one/run-01/summary.json");
+  EXPECT_TRUE(run.contains("faults")) << run.dump();
+  EXPECT_GT(run["vehicles"][sc.vehicles[9].name]["depth"].get<int>(), 1);
+  EXPECT_EQ(run["vehicles"][sc.vehicles[sc.leader].name]["depth"].get<int>(), 0);
+  o.threads = 0;
+  EXPECT_THROW(RunFolder(sc, o, base + "/zero"), std::invalid_argument);
+  fs::remove_all(base);
+}
+
 }  // namespace
 }  // namespace fnmpc::app
