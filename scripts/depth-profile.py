@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: BSD-3-Clause
 """Formation error and peak speed per graph depth of a run folder (issue #18, string
-stability): depth = fewest formation ties from the leader (`fnmpc run --dry-run` prints it).
+stability): depth = fewest formation ties from the leader, as each run's summary.json gives
+it per vehicle (`fnmpc run --dry-run` prints it too).
 
   scripts/depth-profile.py RUN_FOLDER [--plot depth.png]
 
@@ -17,17 +18,16 @@ from pathlib import Path
 
 
 def depths(vehicles):
-    """Graph depth per vehicle name from the summary's neighbour lists (leader: 0)."""
-    depth = {n: 0 for n, v in vehicles.items() if v.get("role") == "leader"}
-    changed = True
-    while changed:
-        changed = False
-        for name, v in vehicles.items():
-            for nb in v.get("neighbours", []):
-                if nb in depth and (name not in depth or depth[nb] + 1 < depth[name]):
-                    depth[name] = depth[nb] + 1
-                    changed = True
-    return depth
+    """Graph depth per vehicle name, as summary.json gives it (fnmpc run: formation::TieDepths;
+    vehicles not tied to the leader have none and are left out)."""
+    out = {}
+    for name, v in vehicles.items():
+        if "depth" not in v:
+            sys.exit("depth-profile: summary.json has no per-vehicle 'depth' (made by an older "
+                     "fnmpc run: rerun it)")
+        if v["depth"] is not None:
+            out[name] = v["depth"]
+    return out
 
 
 def vehicle_figures(path):

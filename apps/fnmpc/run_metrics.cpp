@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "apps/fnmpc/formation_print.hpp"
+
 namespace fnmpc::app {
 
 namespace {
@@ -48,11 +50,15 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
   auto worse = [](double a, double b) {
     return std::isnan(a) ? b : (std::isnan(b) ? a : std::max(a, b));
   };
+  const std::vector<int> depth = TieDepths(sc);
   for (int i = 0; i < nv; ++i) {
     const auto& v = sc.vehicles[i];
     const VehicleRecord& L = r.vehicles[i];
     json j;
     j["role"] = v.leader ? "leader" : "follower";
+    // Fewest formation ties from the leader (formation::TieDepths; null: not tied to it).
+    j["depth"] = depth[static_cast<std::size_t>(i)] >= 0 ? json(depth[static_cast<std::size_t>(i)])
+                                                         : json(nullptr);
     if (!v.leader) {
       j["formation_error_mean_m"] = Num(Mean(L.errors));
       j["formation_error_steady_state_mean_m"] = Num(Mean(L.steady_errors));
