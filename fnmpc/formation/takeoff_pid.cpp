@@ -19,7 +19,10 @@ void TakeoffPidConfig::Validate() const {
   check(kd_z, "kd_z");
   check(ki_z, "ki_z");
   check(max_integral, "max_integral");
+  check(kp_xy, "kp_xy");
   check(kv_xy, "kv_xy");
+  check(ki_xy, "ki_xy");
+  check(max_integral_xy, "max_integral_xy");
   check(max_tilt, "max_tilt");
   check(max_thrust, "max_thrust");
 }
@@ -33,10 +36,11 @@ void TakeoffPid::Reset(double thrust) {
   integral_ = std::isfinite(thrust) ? std::clamp(thrust / mass_ - kGravity, -config_.max_integral,
                                                  config_.max_integral)
                                     : 0.0;
+  integral_xy_.setZero();
 }
 
 PidCommand TakeoffPid::Update(double dt, double z_ref, double vz_ref, double z,
-                              const Vec3& velocity, const Vec3& euler) {
+                              const Vec3& velocity, const Vec3& euler, const Vec<2>& xy_error) {
   PidCommand c;
   const double ez = z_ref - z;
   if (std::isfinite(ez) && dt > 0.0) {
@@ -47,7 +51,16 @@ PidCommand TakeoffPid::Update(double dt, double z_ref, double vz_ref, double z,
   const double tilt = std::max(0.5, std::cos(euler.x()) * std::cos(euler.y()));
   c.thrust = std::clamp(mass_ * (kGravity + az) / tilt, 0.0, config_.max_thrust);
   if (!std::isfinite(az) || !std::isfinite(tilt)) c.thrust = kNaN;
-  const double ax = -config_.kv_xy * velocity.x(), ay = -config_.kv_xy * velocity.y();
+  Vec<2> a = -config_.kv_xy * velocity.head<2>();
+  if (xy_error.allFinite()) {
+    if (dt > 0.0) {
+      integral_xy_ = (integral_xy_ + config_.ki_xy * dt * xy_error)
+                         .cwiseMax(-config_.max_integral_xy)
+                         .cwiseMin(config_.max_integral_xy);
+    }
+    a += config_.kp_xy * xy_error + integral_xy_;
+  }
+  const double ax = a.x(), ay = a.y();
   const double cy = std::cos(euler.z()), sy = std::sin(euler.z());
   c.pitch = std::clamp((ax * cy + ay * sy) / kGravity, -config_.max_tilt, config_.max_tilt);
   c.roll = std::clamp((ax * sy - ay * cy) / kGravity, -config_.max_tilt, config_.max_tilt);

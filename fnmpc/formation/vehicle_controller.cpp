@@ -729,6 +729,10 @@ std::int64_t VehicleController::estimator_rejections() const {
   return n;
 }
 
+// The take-off and landing PID's horizontal error: hold point minus the own position estimate
+// (a follower's is dead-reckoned from its velocity, drift-free enough over one phase).
+Vec<2> VehicleController::HoldError() const { return hold_xy_ - estimates_.own.position.head<2>(); }
+
 double VehicleController::Height() const {
   const auto& own = estimates_.own;
   if (config_.leader) return own.valid ? own.position.z() : kNaN;
@@ -1023,12 +1027,14 @@ ControlOutput VehicleController::Step(double t) {
     phase_ = FlightPhase::kTakeoff;
     phase_start_ = t;
     z_ref_ = z;
+    hold_xy_ = own.position.head<2>();
     pid_.Reset(config_.params.mass * kGravity);
   }
   if (phase_ == FlightPhase::kNmpc && t >= config_.landing_time) {
     phase_ = FlightPhase::kLanding;
     phase_start_ = t;
     z_ref_ = std::isfinite(z) ? z : h;
+    hold_xy_ = own.position.head<2>();
     pid_.Reset(last_command_[0]);
     blend_from_ = last_command_;
     blend_start_ = t;
@@ -1046,7 +1052,7 @@ ControlOutput VehicleController::Step(double t) {
         z_ref_ = std::min(h, z_ref_ + config_.climb_speed * dt);
         vz_ref = z_ref_ < h ? config_.climb_speed : 0.0;
       }
-      const PidCommand c = pid_.Update(dt, z_ref_, vz_ref, z, own.velocity, own.euler);
+      const PidCommand c = pid_.Update(dt, z_ref_, vz_ref, z, own.velocity, own.euler, HoldError());
       thrust = c.thrust;
       roll = c.roll;
       pitch = c.pitch;
@@ -1078,7 +1084,7 @@ ControlOutput VehicleController::Step(double t) {
       if (PidEstimateLost(t, z, &out)) break;
       z_ref_ = std::max(ground - 0.3, z_ref_ - config_.descent_speed * dt);
       const PidCommand c =
-          pid_.Update(dt, z_ref_, -config_.descent_speed, z, own.velocity, own.euler);
+          pid_.Update(dt, z_ref_, -config_.descent_speed, z, own.velocity, own.euler, HoldError());
       thrust = c.thrust;
       roll = c.roll;
       pitch = c.pitch;
@@ -1172,7 +1178,8 @@ ControlOutput VehicleController::Step(double t) {
       if (descending) z_ref_ = std::max(ground - 0.3, z_ref_ - fs * dt);
       // Level: no horizontal damping (the horizontal estimate may be what failed).
       const double vz = std::isfinite(vz_meas) ? vz_meas : 0.0;
-      const PidCommand c = pid_.Update(dt, z_ref_, vz_ref, zf, Vec3(0.0, 0.0, vz), Vec3::Zero());
+      const PidCommand c = pid_.Update(dt, z_ref_, vz_ref, zf, Vec3(0.0, 0.0, vz), Vec3::Zero(),
+                                       Vec<2>::Constant(kNaN));
       thrust = c.thrust;
       if (TouchedDown(zf, vz)) {
         phase_ = FlightPhase::kLanded;
@@ -1187,7 +1194,8 @@ ControlOutput VehicleController::Step(double t) {
     roll = pitch = 0.0;
     if (raw && raw_v_.allFinite() && std::isfinite(raw_yaw_)) {
       // Motion capture left: brake the horizontal velocity too (the PID's damping).
-      const PidCommand c = pid_.Update(0.0, zf, 0.0, zf, raw_v_, Vec3(0.0, 0.0, raw_yaw_));
+      const PidCommand c =
+          pid_.Update(0.0, zf, 0.0, zf, raw_v_, Vec3(0.0, 0.0, raw_yaw_), Vec<2>::Constant(kNaN));
       roll = c.roll;
       pitch = c.pitch;
     }

@@ -169,6 +169,7 @@ class VehicleController {
  private:
   ControlOutput Step(double t);
   double Height() const;
+  [[nodiscard]] Vec<2> HoldError() const;
   void Blend(double t, double* thrust, double* roll, double* pitch) const;
   bool EstimateUsable(double t) const;
   void UpdateNeighbourPresence(double t);
@@ -218,6 +219,9 @@ class VehicleController {
   double last_time_ = kNaN;
   double at_height_since_ = kNaN;
   double z_ref_ = kNaN;
+  // Horizontal position the take-off and landing PID holds (own estimate, {n} x, y), set
+  // when the phase starts; NaN = velocity damping only.
+  Vec<2> hold_xy_ = Vec<2>::Constant(kNaN);
   double land_z0_ = kNaN;
   double voltage_ = kNaN;  // filtered battery voltage
   double voltage_stamp_ = kNaN;
