@@ -4,7 +4,7 @@
 and prints the markdown table of docs/results.md, section "Faults and safety".
 
   /usr/bin/python3 scripts/safety-campaign.py [--fnmpc build/apps/fnmpc/fnmpc] [--out runs/safety]
-      [--runs N] [--only NAME ...]
+      [--runs N] [--only NAME ...] [--reality on|off]
 
 Per scenario: runs, vehicles that ended on the ground with motors off (landed or
 failsafe-landed), the highest true CoM height and the largest horizontal distance from the
@@ -66,6 +66,8 @@ def main():
     ap.add_argument("--out", default="runs/safety")
     ap.add_argument("--runs", type=int, default=0, help="seeds per scenario (0: the defaults)")
     ap.add_argument("--only", nargs="*", default=None, help="scenario names to fly")
+    ap.add_argument("--reality", choices=("on", "off"),
+                    help="fnmpc run --reality (default: the scenarios' own, off in stress/)")
     a = ap.parse_args()
     if a.runs < 0:
         ap.error("--runs must be >= 0")
@@ -78,6 +80,8 @@ def main():
         # --overwrite: a rerun into the same --out replaces the earlier run folders.
         cmd = [a.fnmpc, "run", f"config/scenarios/stress/{name}.yaml", "--runs", str(runs),
                "-o", out_dir, "--overwrite"]
+        if a.reality:
+            cmd += ["--reality", a.reality]
         print(f"safety-campaign: {name} ({runs} runs)", file=sys.stderr, flush=True)
         r = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         # 3: the runs finished but some vehicle failed (envelope, landing, failsafe;

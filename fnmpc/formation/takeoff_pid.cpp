@@ -18,7 +18,6 @@ void TakeoffPidConfig::Validate() const {
   check(kp_z, "kp_z");
   check(kd_z, "kd_z");
   check(ki_z, "ki_z");
-  check(max_integral, "max_integral");
   check(kp_xy, "kp_xy");
   check(kv_xy, "kv_xy");
   check(ki_xy, "ki_xy");
@@ -30,12 +29,14 @@ void TakeoffPidConfig::Validate() const {
 TakeoffPid::TakeoffPid(const TakeoffPidConfig& config, double mass) : config_(config), mass_(mass) {
   config_.Validate();
   if (!(mass > 0.0)) throw std::invalid_argument("[TakeoffPid] mass must be > 0");
+  // Anti-windup from the actuator: the integral never asks for more than the thrust bound
+  // gives in level flight, nor for less than zero thrust.
+  max_integral_ = std::max(0.0, config_.max_thrust / mass_ - kGravity);
 }
 
 void TakeoffPid::Reset(double thrust) {
-  integral_ = std::isfinite(thrust) ? std::clamp(thrust / mass_ - kGravity, -config_.max_integral,
-                                                 config_.max_integral)
-                                    : 0.0;
+  integral_ =
+      std::isfinite(thrust) ? std::clamp(thrust / mass_ - kGravity, -kGravity, max_integral_) : 0.0;
   integral_xy_.setZero();
 }
 
@@ -44,8 +45,7 @@ PidCommand TakeoffPid::Update(double dt, double z_ref, double vz_ref, double z,
   PidCommand c;
   const double ez = z_ref - z;
   if (std::isfinite(ez) && dt > 0.0) {
-    integral_ =
-        std::clamp(integral_ + config_.ki_z * ez * dt, -config_.max_integral, config_.max_integral);
+    integral_ = std::clamp(integral_ + config_.ki_z * ez * dt, -kGravity, max_integral_);
   }
   const double az = config_.kp_z * ez + config_.kd_z * (vz_ref - velocity.z()) + integral_;
   const double tilt = std::max(0.5, std::cos(euler.x()) * std::cos(euler.y()));

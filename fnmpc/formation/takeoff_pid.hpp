@@ -7,6 +7,15 @@ namespace fnmpc::formation {
 
 /// Gains of the take-off / landing controller.
 ///
+/// Vertical loop: PID on the height with a triple pole at -1.5 1/s (s^3 + kd s^2 + kp s + ki
+/// = (s + 1.5)^3), the horizontal loop's frequency; the thrust responds within the motor time
+/// constant (0.02 s), far faster. The former gains (4, 3, 1.5) had a slow real pole at
+/// -0.58 1/s: after a gust (another vehicle's wake) the integral took about 10 s to unwind and
+/// the take-off could not complete. The integral is bounded only by the actuator (zero
+/// thrust to `max_thrust` in level flight), so any steady push the thrust margin can fly
+/// against is compensated (the 2 m/s^2 bound before could not cancel a wake of 40-50 % of the
+/// weight, docs/simulator.md).
+///
 /// Horizontal loop: a PID on the horizontal position error from the vehicle's own estimate,
 /// acting through small roll/pitch references (a = kp_xy e - kv_xy v + integral, tilt = a/g).
 /// Rationale of the defaults: the autopilot's attitude loop is a first-order lag of about
@@ -21,10 +30,9 @@ namespace fnmpc::formation {
 /// D terms keep their authority. Without an integral, a bias b leaves a steady offset g b /
 /// kp_xy (0.15 m at 2 deg).
 struct TakeoffPidConfig {
-  double kp_z = 4.0;             ///< height error to vertical acceleration [1/s^2]
-  double kd_z = 3.0;             ///< vertical speed error to acceleration [1/s]
-  double ki_z = 1.5;             ///< integral gain [1/s^3]
-  double max_integral = 2.0;     ///< bound of the integral acceleration term [m/s^2]
+  double kp_z = 6.75;            ///< height error to vertical acceleration [1/s^2]
+  double kd_z = 4.5;             ///< vertical speed error to acceleration [1/s]
+  double ki_z = 3.375;           ///< integral gain [1/s^3]
   double kp_xy = 2.25;           ///< horizontal position error to acceleration [1/s^2]
   double kv_xy = 3.0;            ///< horizontal velocity damping [1/s]
   double ki_xy = 0.5;            ///< horizontal integral gain [1/s^3]
@@ -67,7 +75,8 @@ class TakeoffPid {
  private:
   TakeoffPidConfig config_;
   double mass_;
-  double integral_ = 0.0;                // [m/s^2]
+  double max_integral_ = 0.0;            // [m/s^2], from max_thrust
+  double integral_ = 0.0;                // [m/s^2], in [-g, max_integral_]
   Vec<2> integral_xy_ = Vec<2>::Zero();  // [m/s^2]
 };
 

@@ -1028,6 +1028,7 @@ ControlOutput VehicleController::Step(double t) {
     phase_start_ = t;
     z_ref_ = z;
     hold_xy_ = own.position.head<2>();
+    height_error_lp_ = kNaN;
     pid_.Reset(config_.params.mass * kGravity);
   }
   if (phase_ == FlightPhase::kNmpc && t >= config_.landing_time) {
@@ -1056,7 +1057,20 @@ ControlOutput VehicleController::Step(double t) {
       thrust = c.thrust;
       roll = c.roll;
       pitch = c.pitch;
-      if (z_ref_ >= h && std::abs(z - h) < 0.05) {
+      // At height: the height error low-passed over a third of the hover time within
+      // kAtHeightTolerance and every sample within kAtHeightBand, for hover_before_switch. The
+      // filter lets a gusty push average out (another vehicle's turbulent wake); requiring
+      // every sample within the tolerance held a follower under its leader in the take-off
+      // for 5-43 s (docs/results.md "Faults and safety"). A steady offset still blocks.
+      if (z_ref_ >= h && std::isfinite(z)) {
+        const double tau = std::max(config_.hover_before_switch / 3.0, dt);
+        const double e = z - h;
+        height_error_lp_ = std::isfinite(height_error_lp_)
+                               ? height_error_lp_ + (e - height_error_lp_) * std::min(1.0, dt / tau)
+                               : e;
+      }
+      if (z_ref_ >= h && std::abs(z - h) < kAtHeightBand &&
+          std::abs(height_error_lp_) < kAtHeightTolerance) {
         if (!std::isfinite(at_height_since_)) at_height_since_ = t;
       } else {
         at_height_since_ = kNaN;

@@ -218,6 +218,12 @@ class VehicleController {
   double nmpc_start_ = kNaN;
   double last_time_ = kNaN;
   double at_height_since_ = kNaN;
+  double height_error_lp_ = kNaN;  // take-off: low-passed height error [m]
+  // Take-off completion: low-passed height error within the tolerance (the former
+  // every-sample band) and every sample within three times it, so the NMPC never takes over
+  // far from the take-off height.
+  static constexpr double kAtHeightTolerance = 0.05;  // [m]
+  static constexpr double kAtHeightBand = 0.15;       // [m]
   double z_ref_ = kNaN;
   // Horizontal position the take-off and landing PID holds (own estimate, {n} x, y), set
   // when the phase starts; NaN = velocity damping only.

@@ -188,7 +188,7 @@ TEST(SafetyTest, FailsafeHoldIgnoresMotionCaptureOutliers) {
     plant.Step(o);
     z_dev = std::max(z_dev, std::abs(plant.x[2] - z0));
   }
-  // Then the thrust stays near hover (a 0.8 m jump would ask kp_z * 0.8 * m = 4.4 N, and the
+  // Then the thrust stays near hover (a 0.8 m jump would ask kp_z * 0.8 * m = 7.4 N, and the
   // raw rate's jump far more) and the height holds
   EXPECT_LT(thrust_dev, 1.0);
   EXPECT_LT(z_dev, 0.05);
