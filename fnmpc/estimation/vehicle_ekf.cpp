@@ -70,6 +70,10 @@ void VehicleEkfConfig::Validate() const {
   Require(landed_attitude_noise > 0.0, "landed_attitude_noise", landed_attitude_noise,
           "must be > 0");
   Require(zupt_std > 0.0, "zupt_std", zupt_std, "must be > 0");
+  Require(disturbance_noise >= 0.0 && std::isfinite(disturbance_noise), "disturbance_noise",
+          disturbance_noise, "must be finite and >= 0");
+  Require(initial_disturbance_std > 0.0 && std::isfinite(initial_disturbance_std),
+          "initial_disturbance_std", initial_disturbance_std, "must be finite and > 0");
   Require(initial_velocity_std > 0.0, "initial_velocity_std", initial_velocity_std, "must be > 0");
   Require(initial_accel_bias_std > 0.0, "initial_accel_bias_std", initial_accel_bias_std,
           "must be > 0");
@@ -176,7 +180,7 @@ VehicleStateVec CommandFlow(const VehicleStateVec& x, double thrust, const Vec3&
   f.segment<3>(Idx::kPos) = x.segment<3>(Idx::kVel);
   f.segment<3>(Idx::kVel) =
       BodyZ(e.x(), e.y(), e.z()) * (thrust * vehicle.bias.thrust_scale / vehicle.mass) -
-      Vec3(0.0, 0.0, kGravity);
+      Vec3(0.0, 0.0, kGravity) + x.segment<3>(Idx::kDisturbance);
   f(Idx::kEuler) = (k.x() * r.x() - e.x()) / tau.x();
   f(Idx::kEuler + 1) = (k.y() * r.y() - e.y()) / tau.y();
   f(Idx::kEuler + 2) = WrapAngle(k.z() * r.z() - e.z()) / tau.z();
@@ -190,10 +194,18 @@ VehicleStateCov CommandFlowJacobian(const VehicleStateVec& x, double thrust, con
   A.block<3, 3>(Idx::kPos, Idx::kVel).setIdentity();
   A.block<3, 3>(Idx::kVel, Idx::kEuler) =
       BodyZJacobian(e.x(), e.y(), e.z()) * (thrust * vehicle.bias.thrust_scale / vehicle.mass);
+  A.block<3, 3>(Idx::kVel, Idx::kDisturbance).setIdentity();
   for (int i = 0; i < 3; ++i) {
     A(Idx::kEuler + i, Idx::kEuler + i) = -1.0 / vehicle.attitude_time_constant(i);
   }
   return A;
+}
+
+Vec3 UnexplainedAcceleration(const VehicleStateVec& x, const Vec3& accel, double thrust,
+                             const model::VehicleParams& vehicle) {
+  const Vec3 e = x.segment<3>(Idx::kEuler);
+  return RotationZyx(e.x(), e.y(), e.z()) * (accel - x.segment<3>(Idx::kAccelBias)) -
+         BodyZ(e.x(), e.y(), e.z()) * (thrust * vehicle.bias.thrust_scale / vehicle.mass);
 }
 
 Vec3 LandedAccel(const VehicleStateVec& x) {
@@ -258,6 +270,7 @@ void VehicleEkf::InitState(double t, const Vec3& position, const Vec3& euler, St
   s->P.diagonal()
       .segment<3>(Idx::kGyroBias)
       .setConstant(config_.initial_gyro_bias_std * config_.initial_gyro_bias_std);
+  ResetDisturbance(s);
   s->mode = config_.initial_mode;
   s->ground_z = s->mode == VehicleMode::kLanded ? position.z() : config_.ground_height;
   s->origin = position;
@@ -266,6 +279,15 @@ void VehicleEkf::InitState(double t, const Vec3& position, const Vec3& euler, St
   s->land_since = kNaN;
   s->consecutive_gated = {};
   s->last_fused.fill(kNaN);
+}
+
+void VehicleEkf::ResetDisturbance(State* s) const {
+  s->x.segment<3>(Idx::kDisturbance).setZero();
+  s->P.middleRows<3>(Idx::kDisturbance).setZero();
+  s->P.middleCols<3>(Idx::kDisturbance).setZero();
+  s->P.diagonal()
+      .segment<3>(Idx::kDisturbance)
+      .setConstant(config_.initial_disturbance_std * config_.initial_disturbance_std);
 }
 
 void VehicleEkf::Initialize(double t, const Vec3& position, const Vec3& euler) {
@@ -466,6 +488,8 @@ EkfStatus VehicleEkf::ApplyMeasurement(const Measurement& m, State* s) const {
         status = sa != EkfStatus::kAccepted ? sa : sg;
       } else if (config_.motion_model != MotionModel::kImu) {
         status = EkfStatus::kIgnored;
+      } else if (CommandFresh(m.stamp, *s)) {
+        UpdateDisturbance(m, s);
       }
       break;
     }
@@ -522,6 +546,24 @@ EkfStatus VehicleEkf::ApplyMeasurement(const Measurement& m, State* s) const {
   return status;
 }
 
+// IMU pseudo-measurement of d: 0 = UnexplainedAcceleration(x) - d + noise. Only the d
+// columns of H are kept (attitude and accelerometer bias taken as known): d stays
+// uncorrelated with the other states in the IMU model, which then do not depend on d. Noise per
+// sample: the IMU's white noise plus the thrust model's error density at the IMU rate (the
+// command is held between control steps, the motors lag it). No gate: a model constraint
+// like the ZUPT; a failed update (non-finite) leaves the state as it was.
+void VehicleEkf::UpdateDisturbance(const Measurement& m, State* s) const {
+  const SensorsConfig& sc = config_.sensors;
+  const Vec3 y = UnexplainedAcceleration(s->x, m.accel, s->command.thrust, vehicle_) -
+                 s->x.segment<3>(Idx::kDisturbance);
+  const double model_var =
+      config_.command_accel_noise * config_.command_accel_noise * sc.imu.rate_hz;
+  const Mat3 R = (sc.imu.noise.array().square() + model_var).matrix().asDiagonal();
+  Mat<3, kN> H = Mat<3, kN>::Zero();
+  H.block<3, 3>(0, Idx::kDisturbance).setIdentity();
+  KalmanUpdate<kN, 3>(y, H, R, kInf, &s->x, &s->P);
+}
+
 void VehicleEkf::UpdateTakeoffEvidence(int index, bool evidence, double t, State* s) const {
   if (!config_.auto_mode_switch || s->mode != VehicleMode::kLanded) return;
   s->takeoff_evidence[static_cast<std::size_t>(index)] = evidence;
@@ -558,6 +600,7 @@ void VehicleEkf::SwitchMode(VehicleMode mode, State* s) const {
   s->takeoff_since = kNaN;
   s->land_since = kNaN;
   if (mode == VehicleMode::kFlying) {
+    ResetDisturbance(s);  // the ground's reaction is not carried into the flight
     const double pv = config_.takeoff_position_std * config_.takeoff_position_std;
     const double vv = config_.takeoff_velocity_std * config_.takeoff_velocity_std;
     for (int i = 0; i < 3; ++i) {
@@ -595,7 +638,9 @@ void VehicleEkf::PredictStep(double h, State* s) const {
   const double qbg = config_.gyro_bias_noise * config_.gyro_bias_noise * h;
   Q.diagonal().segment<3>(Idx::kAccelBias).setConstant(qba);
   Q.diagonal().segment<3>(Idx::kGyroBias).setConstant(qbg);
+  const double qd = config_.disturbance_noise * config_.disturbance_noise * h;
   if (s->mode == VehicleMode::kLanded) {
+    // d is not observed on the ground (held; reset at take-off): no process noise.
     const double qp = config_.landed_position_noise * config_.landed_position_noise * h;
     const double qe = config_.landed_attitude_noise * config_.landed_attitude_noise * h;
     Q.diagonal().segment<3>(Idx::kPos).setConstant(qp);
@@ -614,6 +659,7 @@ void VehicleEkf::PredictStep(double h, State* s) const {
       Q(Idx::kVel + i, Idx::kVel + i) += q * h;
     }
   };
+  Q.diagonal().segment<3>(Idx::kDisturbance).setConstant(qd);
   VehicleStateCov A;
   VehicleStateVec x_mid, x_new;
   const bool imu_ok = config_.motion_model == MotionModel::kImu && std::isfinite(s->imu_stamp) &&
@@ -656,10 +702,10 @@ void VehicleEkf::PredictStep(double h, State* s) const {
     Q.diagonal().segment<3>(Idx::kEuler).array() +=
         config_.command_attitude_noise * config_.command_attitude_noise * h;
   }
-  const VehicleStateCov Ah = A * h;
-  const VehicleStateCov F = VehicleStateCov::Identity() + Ah + 0.5 * Ah * Ah;
   s->x = x_new;
   s->x(Idx::kEuler + 2) = WrapAngle(s->x(Idx::kEuler + 2));
+  const VehicleStateCov Ah = A * h;
+  const VehicleStateCov F = VehicleStateCov::Identity() + Ah + 0.5 * Ah * Ah;
   s->P = F * s->P * F.transpose() + Q;
   Symmetrize<kN>(&s->P);
 }
@@ -726,6 +772,7 @@ VehicleEstimate VehicleEkf::Estimate(double t) const {
   out.euler = st.x.segment<3>(Idx::kEuler);
   out.accel_bias = st.x.segment<3>(Idx::kAccelBias);
   out.gyro_bias = st.x.segment<3>(Idx::kGyroBias);
+  out.disturbance = st.x.segment<3>(Idx::kDisturbance);
   return out;
 }
 

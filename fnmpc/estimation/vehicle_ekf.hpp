@@ -12,14 +12,18 @@
 
 namespace fnmpc::estimation {
 
-/// Index of each entry of the VehicleEkf state x (15 entries), frame {n} (ENU, z up).
+/// Index of each entry of the VehicleEkf state x (18 entries), frame {n} (ENU, z up).
 struct VehicleStateIndex {
   static constexpr int kPos = 0;        ///< position p [m], 3
   static constexpr int kVel = 3;        ///< velocity v [m/s], 3
   static constexpr int kEuler = 6;      ///< roll, pitch, yaw (ZYX) [rad], 3
   static constexpr int kAccelBias = 9;  ///< accelerometer bias, body frame [m/s^2], 3
   static constexpr int kGyroBias = 12;  ///< gyro bias, body frame [rad/s], 3
-  static constexpr int kSize = 15;
+  /// External acceleration d, frame {n} [m/s^2], 3: what the thrust model leaves
+  /// unexplained, v' = BodyZ(euler) T s / m - g e3 + d (wind, wakes, thrust-scale and mass
+  /// errors); the external force is m d. Random walk (VehicleEkfConfig::disturbance_noise).
+  static constexpr int kDisturbance = 15;
+  static constexpr int kSize = 18;
 };
 using VehicleStateVec = Vec<VehicleStateIndex::kSize>;
 using VehicleStateCov = Mat<VehicleStateIndex::kSize, VehicleStateIndex::kSize>;
@@ -60,11 +64,18 @@ struct VehicleEkfConfig {
   double landed_position_noise = 1e-3;   ///< landed position random walk [m/sqrt(s)]
   double landed_attitude_noise = 1e-3;   ///< landed attitude random walk [rad/sqrt(s)]
   double zupt_std = 0.005;               ///< landed zero-velocity pseudo-measurement std [m/s]
+  /// Random walk of the external acceleration d while flying [m/s^2/sqrt(s)]. Default from
+  /// the physics of what d stands for: a change of 0.1 g within about 1 s (a gust front, a
+  /// neighbour's wake entered at 1 m/s: its half-width of a few decimetres is crossed in
+  /// well under a second), i.e. 0.1 * 9.81 / sqrt(1 s). Not tuned to a closed-loop figure.
+  double disturbance_noise = 0.981;
 
   // Initial uncertainty (position and attitude come from the first mocap fix).
   double initial_velocity_std = 0.5;    ///< [m/s]
   double initial_accel_bias_std = 0.1;  ///< [m/s^2]
   double initial_gyro_bias_std = 0.01;  ///< [rad/s]
+  /// Prior std of d at initialisation and at every take-off [m/s^2]: 0.1 g.
+  double initial_disturbance_std = 0.981;
 
   // Robustness.
   double gate_probability = 0.99999;  ///< chi-square gate on the NIS, per measurement dim
@@ -125,13 +136,16 @@ struct VehicleEstimate {
   EstimateHealth health;  ///< why not valid, staleness per kind, stds
   double time = kNaN;     ///< time of validity [s]
   VehicleMode mode = VehicleMode::kLanded;
-  Vec3 position = Vec3::Constant(kNaN);                 ///< {n} [m]
-  Vec3 position_mpc = Vec3::Constant(kNaN);             ///< {m}: position - start position [m]
-  Vec3 velocity = Vec3::Constant(kNaN);                 ///< {n} = {m} axes [m/s]
-  Vec3 euler = Vec3::Constant(kNaN);                    ///< roll, pitch, yaw [rad]
-  Vec3 accel_bias = Vec3::Constant(kNaN);               ///< body [m/s^2]
-  Vec3 gyro_bias = Vec3::Constant(kNaN);                ///< body [rad/s]
-  VehicleStateVec x = VehicleStateVec::Constant(kNaN);  ///< full state (VehicleStateIndex)
+  Vec3 position = Vec3::Constant(kNaN);      ///< {n} [m]
+  Vec3 position_mpc = Vec3::Constant(kNaN);  ///< {m}: position - start position [m]
+  Vec3 velocity = Vec3::Constant(kNaN);      ///< {n} = {m} axes [m/s]
+  Vec3 euler = Vec3::Constant(kNaN);         ///< roll, pitch, yaw [rad]
+  Vec3 accel_bias = Vec3::Constant(kNaN);    ///< body [m/s^2]
+  Vec3 gyro_bias = Vec3::Constant(kNaN);     ///< body [rad/s]
+  /// External acceleration d, {n} [m/s^2] (VehicleStateIndex::kDisturbance); 0 while
+  /// landed or before a command was fused in flight.
+  Vec3 disturbance = Vec3::Constant(kNaN);
+  VehicleStateVec x = VehicleStateVec::Constant(kNaN);           ///< full state (VehicleStateIndex)
   VehicleStateCov covariance = VehicleStateCov::Constant(kNaN);  ///< of x
 };
 
@@ -143,6 +157,13 @@ struct VehicleEstimate {
 /// motion model and for take-off/landing evidence. Output: Estimate(t).
 /// Modes: landed (p, v held; IMU accel observes roll/pitch and accel bias, gyro the gyro
 /// bias) and flying (IMU strapdown or command model); switched with hysteresis.
+/// External acceleration d (disturbance observer, offset-free NMPC): flying with the IMU
+/// model, every IMU sample with a fresh command is a pseudo-measurement of d,
+/// R(euler) (f - b_a) - BodyZ(euler) T s / m = d + noise (the thrust model's error,
+/// `command_accel_noise`), fused with attitude and accelerometer bias taken as known, so
+/// d stays uncorrelated with the other 15 states, which do not depend on it (the same bits
+/// whatever d is); with the command model d enters v' and is observed through the velocity.
+/// Reset to 0 at every take-off.
 /// Conventions: world {n} ENU z up, ZYX Euler angles, yaw wrapped to (-pi, pi].
 /// Initialised by the first mocap fix or by Initialize(). No heap allocation after
 /// construction. See docs/estimation.md.
@@ -223,6 +244,8 @@ class VehicleEkf {
   void UpdateTakeoffEvidence(int index, bool evidence, double t, State* s) const;
   void CheckLanding(double t, State* s) const;
   void SwitchMode(VehicleMode mode, State* s) const;
+  void ResetDisturbance(State* s) const;
+  void UpdateDisturbance(const Measurement& m, State* s) const;
   template <int M>
   EkfStatus Update(SensorKind kind, const Vec<M>& y, const Mat<M, VehicleStateIndex::kSize>& H,
                    const Mat<M, M>& R, State* s) const;
@@ -251,6 +274,11 @@ VehicleStateVec CommandFlow(const VehicleStateVec& x, double thrust, const Vec3&
 /// Jacobian d CommandFlow / dx.
 VehicleStateCov CommandFlowJacobian(const VehicleStateVec& x, double thrust, const Vec3& refs,
                                     const model::VehicleParams& vehicle);
+/// Acceleration the thrust model leaves unexplained: R(euler) (accel - b_a) - BodyZ(euler)
+/// thrust s / m [m/s^2, {n}] (gravity cancels), the IMU pseudo-measurement of the external
+/// acceleration d; accel [m/s^2] body frame, thrust [N] the command.
+Vec3 UnexplainedAcceleration(const VehicleStateVec& x, const Vec3& accel, double thrust,
+                             const model::VehicleParams& vehicle);
 /// Landed accelerometer model: specific force of a vehicle at rest, R' g e3 + b_a [m/s^2].
 Vec3 LandedAccel(const VehicleStateVec& x);
 /// Jacobian d LandedAccel / dx.

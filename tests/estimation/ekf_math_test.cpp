@@ -147,7 +147,8 @@ using ::fnmpc::testing::NumericJacobian;
 
 VehicleStateVec SampleVehicleState() {
   VehicleStateVec x;
-  x << 1.0, -2.0, 3.0, 0.4, -0.3, 0.2, 0.15, -0.1, 2.8, 0.05, -0.02, 0.1, 0.01, -0.02, 0.005;
+  x << 1.0, -2.0, 3.0, 0.4, -0.3, 0.2, 0.15, -0.1, 2.8, 0.05, -0.02, 0.1, 0.01, -0.02, 0.005, 0.3,
+      -0.7, 1.1;
   return x;
 }
 
@@ -156,8 +157,8 @@ TEST(VehicleModelTest, ImuFlowJacobianMatchesFiniteDifferences) {
   const VehicleStateVec x = SampleVehicleState();
   const Vec3 f(0.5, -0.3, 9.9), w(0.2, -0.4, 0.3);
   // When / Then
-  const VehicleStateCov fd =
-      NumericJacobian<15>(x, [&](const VehicleStateVec& z) { return ImuFlow(z, f, w); });
+  const VehicleStateCov fd = NumericJacobian<VehicleStateIndex::kSize>(
+      x, [&](const VehicleStateVec& z) { return ImuFlow(z, f, w); });
   EXPECT_LT((fd - ImuFlowJacobian(x, f, w)).cwiseAbs().maxCoeff(), 1e-7);
 }
 
@@ -169,7 +170,7 @@ TEST(VehicleModelTest, CommandFlowJacobianMatchesFiniteDifferences) {
   const VehicleStateVec x = SampleVehicleState();
   const Vec3 refs(0.1, -0.05, 2.9);
   // When / Then
-  const VehicleStateCov fd = NumericJacobian<15>(
+  const VehicleStateCov fd = NumericJacobian<VehicleStateIndex::kSize>(
       x, [&](const VehicleStateVec& z) { return CommandFlow(z, 14.0, refs, vp); });
   EXPECT_LT((fd - CommandFlowJacobian(x, 14.0, refs, vp)).cwiseAbs().maxCoeff(), 1e-7);
   // And at equilibrium attitude with hover thrust, the vertical acceleration vanishes
@@ -181,8 +182,8 @@ TEST(VehicleModelTest, CommandFlowJacobianMatchesFiniteDifferences) {
 
 TEST(VehicleModelTest, LandedAccelJacobianMatchesFiniteDifferences) {
   const VehicleStateVec x = SampleVehicleState();
-  Mat<3, 15> fd;
-  for (int i = 0; i < 15; ++i) {
+  Mat<3, VehicleStateIndex::kSize> fd;
+  for (int i = 0; i < VehicleStateIndex::kSize; ++i) {
     VehicleStateVec xp = x, xm = x;
     xp(i) += 1e-6;
     xm(i) -= 1e-6;
@@ -191,6 +192,37 @@ TEST(VehicleModelTest, LandedAccelJacobianMatchesFiniteDifferences) {
   EXPECT_LT((fd - LandedAccelJacobian(x)).cwiseAbs().maxCoeff(), 1e-7);
   // And level at rest the accelerometer reads +g along body z
   EXPECT_NEAR((LandedAccel(VehicleStateVec::Zero()) - Vec3(0, 0, kGravity)).norm(), 0.0, 1e-15);
+}
+
+TEST(VehicleModelTest, ExternalAccelerationEntersCommandFlowAndIsWhatTheImuLeavesUnexplained) {
+  // Given a tilted vehicle with an external acceleration d in its state
+  model::VehicleParams vp;
+  vp.bias.thrust_scale = 0.97;
+  const VehicleStateVec x = SampleVehicleState();
+  const Vec3 d = x.segment<3>(VehicleStateIndex::kDisturbance);
+  const double thrust = 14.0;
+  // When the command model's acceleration is what the accelerometer senses (specific force
+  // R' (a + g e3) plus the accelerometer bias)
+  const VehicleStateVec f = CommandFlow(x, thrust, Vec3(0.1, -0.05, 2.9), vp);
+  const Vec3 a = f.segment<3>(VehicleStateIndex::kVel);
+  const Vec3 e = x.segment<3>(VehicleStateIndex::kEuler);
+  const Mat3 R = RotationZyx(e.x(), e.y(), e.z());
+  const Vec3 specific =
+      R.transpose() * (a + Vec3(0, 0, kGravity)) + x.segment<3>(VehicleStateIndex::kAccelBias);
+  // Then the acceleration the thrust model leaves unexplained is exactly d
+  EXPECT_LT((UnexplainedAcceleration(x, specific, thrust, vp) - d).norm(), 1e-12);
+  // And d enters v' one to one, and nothing else
+  VehicleStateVec x0 = x;
+  x0.segment<3>(VehicleStateIndex::kDisturbance).setZero();
+  const VehicleStateVec diff = f - CommandFlow(x0, thrust, Vec3(0.1, -0.05, 2.9), vp);
+  EXPECT_LT((diff.segment<3>(VehicleStateIndex::kVel) - d).norm(), 1e-12);
+  EXPECT_LT(diff.norm() - d.norm(), 1e-12);
+  // And the IMU model leaves d constant (a random walk: f = 0 in its rows)
+  EXPECT_EQ(ImuFlow(x, specific, Vec3(0.1, 0.2, 0.3))
+                .segment<3>(VehicleStateIndex::kDisturbance)
+                .cwiseAbs()
+                .maxCoeff(),
+            0.0);
 }
 
 TEST(NeighbourModelTest, RelativeJacobiansMatchFiniteDifferences) {
