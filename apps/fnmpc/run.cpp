@@ -39,8 +39,9 @@ struct RunArgs {
   bool quiet = false;
   bool overwrite = false;
   bool dry_run = false;
-  std::string downwash;  // "", "on", "off"
-  std::string reality;   // "", "on", "off"
+  std::string downwash;      // "", "on", "off"
+  std::string reality;       // "", "on", "off"
+  std::string compensation;  // "", or a name of formation::kCompensationChoice
 };
 
 /// Creates `dir` or checks that it is empty; with `overwrite` its contents are removed
@@ -87,6 +88,12 @@ int Run(const RunArgs& a) {
     sc.reality.wake = sc.downwash;  // the switch covers the reality wakes too
   }
   if (!a.reality.empty()) sc.reality.enabled = a.reality == "on";
+  if (!a.compensation.empty()) {
+    int level = 0;
+    const std::string bad = formation::kCompensationChoice.Check(a.compensation, &level);
+    if (!bad.empty()) throw std::invalid_argument("--compensation: " + bad);
+    sc.compensation = static_cast<formation::Compensation>(level);
+  }
   for (const std::string& w : sc.warnings) fmt::print(stderr, "fnmpc run: warning: {}\n", w);
   if (a.dry_run) {
     fmt::print("# {}: the vehicles as flown (fnmpc run --dry-run)\n{}", sc.name, VehiclesYaml(sc));
@@ -172,6 +179,10 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
                   "override the scenario's reality switch (off: the ideal plant, the controllers' "
                   "own model; docs/simulator.md)")
       ->check(CLI::IsMember({"on", "off"}));
+  sub->add_option("--compensation", a->compensation,
+                  "override the scenario's controller.compensation: none (the reference work's "
+                  "NMPC) or observer (the estimated external acceleration in the prediction); "
+                  "wake and cooperative are not implemented yet (docs/scenarios.md)");
   sub->add_flag("-q,--quiet", a->quiet, "no progress output");
   sub->add_flag("--dry-run", a->dry_run,
                 "check the scenario and print its vehicles (a generated formation expanded, "

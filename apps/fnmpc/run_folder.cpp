@@ -116,6 +116,7 @@ nlohmann::json RunFolder(const config::ScenarioConfig& sc, const RunFolderOption
   summary["scenario_file"] = options.scenario_file;
   summary["runs_requested"] = options.runs;
   summary["reality"] = sc.reality.enabled;
+  summary["compensation"] = formation::ToString(sc.compensation);
   summary["complete"] = !Stopped(options) && !sim_failed &&
                         static_cast<int>(runs.size()) == options.runs &&
                         summary.value("complete", false);

@@ -28,7 +28,7 @@ void VehicleCsvLog::Write(const VehicleLogRow& r) {
       "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
       "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
       "{:d},{:.6g},{:.6g},{:.6g},{:.6g},{},{},{:d},{},{:d},{},{:.4f},{:.4f},{},{},{},"
-      "{:.5f},{:.5f},{:.5f}\n",
+      "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f}\n",
       r.t, r.phase, x.position.x(), x.position.y(), x.position.z(), x.velocity.x(), x.velocity.y(),
       x.velocity.z(), x.euler.x(), x.euler.y(), x.euler.z(), e.position.x(), e.position.y(),
       e.position.z(), e.velocity.x(), e.velocity.y(), e.velocity.z(), e.euler.x(), e.euler.y(),
@@ -41,7 +41,8 @@ void VehicleCsvLog::Write(const VehicleLogRow& r) {
       out.fallback ? 1 : 0, rti::ToString(out.status), out.guarded ? 1 : 0, r.estimator_rejections,
       x.voltage, out.voltage, formation::ToString(out.recovery),
       formation::ToString(out.recovery_reason), out.active_neighbours, x.aero_force.x(),
-      x.aero_force.y(), x.aero_force.z());
+      x.aero_force.y(), x.aero_force.z(), r.estimated_force.x(), r.estimated_force.y(),
+      r.estimated_force.z());
   file_->Write(std::string_view(row_.data(), row_.size()));
 }
 

@@ -29,7 +29,8 @@ inline constexpr const char* kVehicleLogCsvHeader =
     "rel1_x,rel1_y,rel1_z,est_rel1_x,est_rel1_y,est_rel1_z,err1,formation_error,"
     "steady,cost,kkt,solver_time,solver_cpu_time,sqp_iterations,qp_iterations,"
     "fallback,status,guarded,estimator_rejections,voltage,voltage_measured,"
-    "recovery,recovery_reason,active_neighbours,aero_fx,aero_fy,aero_fz\n";
+    "recovery,recovery_reason,active_neighbours,aero_fx,aero_fy,aero_fz,"
+    "est_fx,est_fy,est_fz\n";
 
 /// One row of the log: one vehicle at one control step.
 struct VehicleLogRow {
@@ -46,6 +47,8 @@ struct VehicleLogRow {
   double formation_error = kNaN;
   bool steady = false;
   std::int64_t estimator_rejections = 0;
+  /// The own estimator's external force m d ({n}, the controller's model mass) [N].
+  Vec3 estimated_force = Vec3::Constant(kNaN);
 };
 
 /// One vehicle's CSV log (kVehicleLogCsvHeader's columns; the first two neighbours).

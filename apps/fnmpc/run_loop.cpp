@@ -320,6 +320,7 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
         row.formation_error = ferr;
         row.steady = steady;
         row.estimator_rejections = rej;
+        if (ctrl[i]) row.estimated_force = ctrl[i]->config().params.mass * e.disturbance;
         csv[i].Write(row);
       }
       if (options.progress && t >= next_progress) {

@@ -330,6 +330,7 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
   s["duration_s"] = r.duration;
   s["downwash"] = sc.downwash;
   s["reality"] = sc.reality.enabled;
+  s["compensation"] = formation::ToString(sc.compensation);
   // The scenario's default window; a follower with its own landing_time uses its own
   // (vehicles.<name>.formation_window_s).
   s["formation_window_s"] = {sc.trajectory_start, sc.landing_time};

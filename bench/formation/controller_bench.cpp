@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // One control step of the VehicleController in the NMPC phase (command path only, then the
 // diagnostics apart): a follower with 2 neighbours hovering in formation, with and without
-// the input-rate and collision terms active. Goal of issue #20: <= 20 us median with both.
+// the input-rate and collision terms active, and with the disturbance observer's external
+// acceleration in the prediction (issue #17). Goal of issues #20/#17: <= 20 us median.
 //   ./build/bench/formation/controller_bench
 #include <benchmark/benchmark.h>
 
@@ -16,8 +17,10 @@ using fnmpc::Vec3;
 using namespace fnmpc::formation;
 
 // rate: input-rate weights on; close: the second neighbour 0.4 m away (inside r_min = 0.45,
-// the collision row active) instead of 3 m.
-void ControlStep(benchmark::State& state, bool rate, bool close) {
+// the collision row active) instead of 3 m. observer: Compensation::kObserver with a constant
+// push d on the plant that the estimate reports (hover targets and the acceleration parameter
+// in use).
+void ControlStep(benchmark::State& state, bool rate, bool close, bool observer = false) {
   ControllerConfig c = testing::BaseConfig(false);
   const Vec3 p0(1.3, -0.8, 1.1);
   const Vec3 p1 = close ? Vec3(0.0, 0.4, 1.1) : Vec3(-1.7, -3.8, 1.1);
@@ -26,6 +29,8 @@ void ControlStep(benchmark::State& state, bool rate, bool close) {
     c.weights.thrust_rate = 2.0;
     c.weights.attitude_ref_rate = 50.0;
   }
+  const Vec3 d = observer ? Vec3(0.3, -0.2, -0.6) : Vec3(Vec3::Zero());
+  if (observer) c.compensation = Compensation::kObserver;
   VehicleController ctrl(c);
   testing::Plant plant;
   std::vector<fnmpc::estimation::NeighbourStateVec> nb(2);
@@ -33,12 +38,16 @@ void ControlStep(benchmark::State& state, bool rate, bool close) {
   auto step = [&] {
     fnmpc::estimation::VehicleEstimate e = plant.Estimate(t);
     e.position.z() -= testing::kGround;
+    e.disturbance = d;
     nb[0].setZero();
     nb[0].head<3>() = p0 - plant.x.head<3>();
     nb[1].setZero();
     nb[1].head<3>() = p1 - plant.x.head<3>();
     const ControlOutput o = ctrl.ControlWithEstimates(t, e, nb);
     plant.Step(o);
+    // The push over the step: exactly its double integral (v' gains d, nothing else).
+    plant.x.head<3>() += 0.5 * testing::kTs * testing::kTs * d;
+    plant.x.segment<3>(3) += testing::kTs * d;
     t += testing::kTs;
     return o;
   };
@@ -57,3 +66,7 @@ void ControlStep(benchmark::State& state, bool rate, bool close) {
 BENCHMARK_CAPTURE(ControlStep, follower2_plain, false, false)->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(ControlStep, follower2_rate, true, false)->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(ControlStep, follower2_rate_collision, true, true)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(ControlStep, follower2_observer, false, false, true)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(ControlStep, follower2_rate_collision_observer, true, true, true)
+    ->Unit(benchmark::kMicrosecond);

@@ -32,6 +32,11 @@ class SettingsDocWriter {
         {prefix_ + std::string(key), Format(*value), limit.Describe(), std::string(doc)});
   }
   void VisitRange(std::string_view key, double* lo, double* hi, std::string_view doc);
+  template <class E>
+  void VisitChoice(std::string_view key, E* value, const Choice& choice, std::string_view doc) {
+    fields_.push_back({prefix_ + std::string(key), choice.names[static_cast<int>(*value)],
+                       choice.Describe(), std::string(doc)});
+  }
   template <class S>
   void Nested(std::string_view key, S* settings) {
     const std::string saved = prefix_;

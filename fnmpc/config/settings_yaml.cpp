@@ -80,4 +80,11 @@ void SettingsReader::ReadValue(YamlMap* m, const std::string& key, const Limit& 
   *v = x;
 }
 
+int SettingsReader::ReadChoice(YamlMap* m, const std::string& key, const Choice& choice) {
+  int index = 0;
+  const std::string bad = choice.Check(m->String(key), &index);
+  if (!bad.empty()) throw m->ErrorAt(key, bad);
+  return index;
+}
+
 }  // namespace fnmpc::config

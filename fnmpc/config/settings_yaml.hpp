@@ -43,6 +43,12 @@ class SettingsReader {
     ReadValue(map, leaf, limit, value);
   }
   void VisitRange(std::string_view key, double* lo, double* hi, std::string_view doc);
+  template <class E>
+  void VisitChoice(std::string_view key, E* value, const Choice& choice, std::string_view /*doc*/) {
+    auto [map, leaf] = Place(key);
+    if (map == nullptr || !map->Has(leaf)) return;
+    *value = static_cast<E>(ReadChoice(map, leaf, choice));
+  }
   template <class S>
   void Nested(std::string_view key, S* settings) {
     const std::string saved = prefix_;
@@ -58,6 +64,7 @@ class SettingsReader {
   static void ReadValue(YamlMap* m, const std::string& key, const Limit& limit, int* v);
   static void ReadValue(YamlMap* m, const std::string& key, const Limit& limit, bool* v);
   static void ReadValue(YamlMap* m, const std::string& key, const Limit& limit, Vec3* v);
+  static int ReadChoice(YamlMap* m, const std::string& key, const Choice& choice);
 
   YamlMap* root_;
   std::string prefix_;

@@ -150,4 +150,49 @@ inline Limit IntIn(int lo, int hi) {
   return l;
 }
 
+/// A field that takes one name of a fixed list (an enum class whose values are 0, 1, ...):
+/// names[i] is value i. The first `available` names are accepted; the later ones are named
+/// but rejected as planned, not implemented yet (a reader says so instead of "unknown").
+/// Archives visit it with `VisitChoice(key, &enum_field, choice, doc)`.
+struct Choice {
+  const char* const* names = nullptr;
+  int count = 0;
+  int available = 0;
+
+  /// Empty and *index set when `name` is accepted, else why not.
+  std::string Check(const std::string& name, int* index) const {
+    for (int i = 0; i < count; ++i) {
+      if (name != names[i]) continue;
+      if (i >= available) {
+        return std::string("'")
+            .append(name)
+            .append("' is not implemented yet (accepted: ")
+            .append(Accepted())
+            .append(")");
+      }
+      *index = i;
+      return {};
+    }
+    return std::string("must be one of ")
+        .append(Accepted())
+        .append(", got '")
+        .append(name)
+        .append("'");
+  }
+  /// The accepted names, then the planned ones ("none, observer; not implemented yet: wake").
+  [[nodiscard]] std::string Describe() const {
+    std::string d = Accepted();
+    if (available < count) {
+      d.append("; not implemented yet: ");
+      for (int i = available; i < count; ++i) d.append(i > available ? ", " : "").append(names[i]);
+    }
+    return d;
+  }
+  [[nodiscard]] std::string Accepted() const {
+    std::string d;
+    for (int i = 0; i < available; ++i) d.append(i > 0 ? ", " : "").append(names[i]);
+    return d;
+  }
+};
+
 }  // namespace fnmpc

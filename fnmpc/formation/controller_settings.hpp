@@ -7,6 +7,20 @@
 
 namespace fnmpc::formation {
 
+/// How much of the aerodynamic interaction the NMPC compensates (issue 17's ablation levels;
+/// each includes the ones before it). Only none and observer exist; wake and cooperative are
+/// named so that a file or the CLI asking for them gets "not implemented yet".
+enum class Compensation : int {
+  kNone = 0,         ///< the reference work's controller: no disturbance in the prediction
+  kObserver = 1,     ///< the own estimator's external acceleration d as a stage parameter
+  kWake = 2,         ///< (planned) plus the neighbours' predicted wakes
+  kCooperative = 3,  ///< (planned) plus shared plans and disturbance estimates
+};
+inline constexpr const char* kCompensationNames[] = {"none", "observer", "wake", "cooperative"};
+/// The names of Compensation, of which the first two are implemented.
+inline constexpr Choice kCompensationChoice{kCompensationNames, 4, 2};
+inline const char* ToString(Compensation c) { return kCompensationNames[static_cast<int>(c)]; }
+
 /// The settings every vehicle's controller of a formation shares: what a scenario sets
 /// (blocks `controller:`, `phases:`, `safety:` and `leader.start_time`). Serialize lists each
 /// field once with its key, accepted values and meaning; the defaults are the initialisers.
@@ -27,6 +41,7 @@ struct ControllerSettings {
   bool use_throttle = true;
   /// Most vehicles one controller tracks with a relative-sensor filter at once.
   int max_tracked = 8;
+  Compensation compensation = Compensation::kNone;
 
   template <class Archive>
   void Serialize(Archive* a) {
@@ -36,6 +51,11 @@ struct ControllerSettings {
              "formation neighbours always have one, the other vehicles in view share the "
              "rest nearest first (collision avoidance); a slot is freed after "
              "`safety.neighbour_timeout` without a measurement of its vehicle");
+    a->VisitChoice("controller.compensation", &compensation, kCompensationChoice,
+                   "disturbance compensation: none = the reference work's NMPC; observer = the "
+                   "own estimator's external acceleration (VehicleEkf state d) enters the "
+                   "prediction as a constant stage parameter (offset-free NMPC). `fnmpc run "
+                   "--compensation` overrides it");
     a->Visit("controller.use_throttle", &use_throttle, AnyValue(),
              "true: command the collective throttle from the thrust and the measured battery "
              "voltage; false: the thrust");

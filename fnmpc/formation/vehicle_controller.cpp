@@ -43,6 +43,14 @@ void ControllerConfig::Validate() const {
   if (!(max_speed > 0.0)) fail("max_speed must be > 0");
   if (max_tracked < 1 || max_tracked > 64)
     fail("max_tracked must be in [1, 64], got " + std::to_string(max_tracked));
+  const int level = static_cast<int>(compensation);
+  if (level < 0 || level >= kCompensationChoice.count) {
+    fail("compensation must be one of " + kCompensationChoice.Accepted());
+  }
+  if (level >= kCompensationChoice.available) {
+    fail(std::string("compensation '") + ToString(compensation) +
+         "' is not implemented yet (accepted: " + kCompensationChoice.Accepted() + ")");
+  }
   safety.Validate();
   if (!leader) {
     if (neighbours.empty() || neighbours.size() > static_cast<std::size_t>(kMaxNeighbours)) {
@@ -98,6 +106,9 @@ struct NmpcInput {
   std::array<NeighbourState, kMaxNeighbours> neighbours{};
   std::array<bool, kMaxNeighbours> active{};  // follower: neighbour j in the cost
   Vec3 last_command = Vec3::Zero();           // (thrust, roll, pitch) last applied
+  // External acceleration held over the horizon ({n} = {m} axes) [m/s^2]: the own
+  // estimator's d with Compensation::kObserver, else zero.
+  Vec3 disturbance = Vec3::Zero();
   // Collision avoidance: the nearest sensed vehicles, relative position (p_o - p_self) and
   // velocity; slots beyond `obstacles` are unused.
   std::array<Vec3, kObstacleSlots> obstacle_rel{}, obstacle_vel{};
@@ -169,6 +180,43 @@ void SolveStep(Solver* s, const typename Solver::X& x0, bool forced_failure, Nmp
   out->stats = s->stats();
 }
 
+// Offset-free steady-state target (Compensation::kObserver): the model's hover under the
+// external acceleration d, v' = BodyZ(phi, theta, psi) T / m - g e3 + d = 0 at the yaw psi,
+// i.e. thrust m |g e3 - d| along g e3 - d, the attitude it needs and the references that hold
+// it (angle = k ref). Written into the rows every stage residual of both cores shares after
+// the position and velocity rows: phi, theta (6, 7), T - m g (8), phi_ref, theta_ref (9, 10);
+// terminal rows phi, theta (6, 7). Without it the input rows would pull the inputs back to the
+// undisturbed hover and leave an offset. (Maeder, Borrelli, Morari, "Linear offset-free model
+// predictive control", Automatica 45 (2009): the target follows the disturbance estimate.)
+struct HoverTarget {
+  double phi = 0.0, theta = 0.0, thrust = 0.0, phi_ref = 0.0, theta_ref = 0.0;
+  HoverTarget(const Vec3& d, double psi, const model::AttitudeModelParams& m) {
+    const Vec3 a = Vec3(0.0, 0.0, kGravity) - d;  // specific thrust the hover needs
+    const double c = std::cos(psi), s = std::sin(psi);
+    const Vec3 ac(c * a.x() + s * a.y(), -s * a.x() + c * a.y(), a.z());  // yaw frame
+    const double n = a.norm();
+    // BodyZ in the yaw frame is (sin theta cos phi, -sin phi, cos theta cos phi).
+    phi = std::asin(std::clamp(-ac.y() / n, -1.0, 1.0));
+    theta = std::atan2(ac.x(), ac.z());
+    thrust = m.mass * n;
+    phi_ref = phi / m.gain[0];
+    theta_ref = theta / m.gain[1];
+  }
+  template <class Y>
+  void WriteStage(Y* y, double mass) const {
+    (*y)[6] = phi;
+    (*y)[7] = theta;
+    (*y)[8] = thrust - mass * kGravity;
+    (*y)[9] = phi_ref;
+    (*y)[10] = theta_ref;
+  }
+  template <class Y>
+  void WriteTerminal(Y* y) const {
+    (*y)[6] = phi;
+    (*y)[7] = theta;
+  }
+};
+
 template <class Solver>
 void InputBounds(const ControllerConfig& c, Solver* s) {
   const Vec3 lo(c.thrust_min, -c.max_attitude_ref, -c.max_attitude_ref);
@@ -181,13 +229,14 @@ void InputBounds(const ControllerConfig& c, Solver* s) {
 // input bounds stay hard.
 class LeaderCore final : public NmpcCore {
  public:
-  using Problem = ocp::WithInputRate<ocp::WithObstacles<ocp::LeaderProblem, kObstacleSlots>>;
-  using Solver = rti::RtiSolver<Problem>;
   using Base = ocp::WithObstacles<ocp::LeaderProblem, kObstacleSlots>;
+  using Problem = ocp::WithAcceleration<ocp::WithInputRate<Base>>;
+  using Solver = rti::RtiSolver<Problem>;
   explicit LeaderCore(const ControllerConfig& c)
       : c_(c),
-        solver_(Problem(Base(ocp::LeaderProblem{model::AttitudeModelParams::From(c.params)},
-                             c.safety.collision_radius)),
+        solver_(Problem(ocp::WithInputRate<Base>(
+                    Base(ocp::LeaderProblem{model::AttitudeModelParams::From(c.params)},
+                         c.safety.collision_radius))),
                 c.rti, rti::StateBoundLayout{{2, 3, 4, 5}, {true, true, true, true}}) {
     const NmpcWeights& wt = c.weights;
     w_.setZero();
@@ -224,7 +273,7 @@ class LeaderCore final : public NmpcCore {
     NmpcStep out;
     if (!first_) solver_.Shift();
     first_ = false;
-    References(in.t);
+    References(in);
     Obstacles(in);
     x0_ = State(in);
     SolveStep(&solver_, x0_, in.forced_failure, &out);
@@ -253,6 +302,7 @@ class LeaderCore final : public NmpcCore {
     for (int k = 0; k <= solver_.horizon(); ++k) {
       Solver::P& p = params_[k];
       p[0] = yaw_ref_;
+      p.segment<3>(Problem::kParamAcceleration) = in.disturbance;
       for (int o = 0; o < kObstacleSlots; ++o) {
         if (o >= in.obstacles) {
           Base::SetUnused(o, &p);
@@ -265,20 +315,24 @@ class LeaderCore final : public NmpcCore {
       solver_.SetParameters(k, p);
     }
   }
-  void References(double t) {
+  void References(const NmpcInput& in) {
     const double ts = c_.rti.sample_time;
+    const bool target = c_.compensation == Compensation::kObserver;
+    const HoverTarget hover(in.disturbance, yaw_ref_, solver_.problem().base.params);
     Vec3 p, v;
     for (int k = 0; k <= solver_.horizon(); ++k) {
-      c_.trajectory.Sample(t + k * ts - c_.trajectory_start, &p, &v);
+      c_.trajectory.Sample(in.t + k * ts - c_.trajectory_start, &p, &v);
       if (k < solver_.horizon()) {
         yref_[k].setZero();
         yref_[k].head<3>() = anchor_ + p;
         yref_[k].segment<3>(3) = v;
+        if (target) hover.WriteStage(&yref_[k], c_.params.mass);
         solver_.SetReference(k, yref_[k]);
       } else {
         yref_n_.setZero();
         yref_n_.head<3>() = anchor_ + p;
         yref_n_.segment<3>(3) = v;
+        if (target) hover.WriteTerminal(&yref_n_);
         solver_.SetTerminalReference(yref_n_);
       }
     }
@@ -309,14 +363,15 @@ class FollowerCore final : public NmpcCore {
  public:
   using Reduced = ocp::ReducedFollowerProblem<1>;
   using Base = ocp::WithObstacles<Reduced, kObstacleSlots>;
-  using Problem = ocp::WithInputRate<Base>;
+  using Problem = ocp::WithAcceleration<ocp::WithInputRate<Base>>;
   using Solver = rti::RtiSolver<Problem>;
   using X = Solver::X;
   static constexpr int kNyR = Reduced::kNy, kNyNR = Reduced::kNyN;
   explicit FollowerCore(const ControllerConfig& c)
       : c_(c),
-        solver_(Problem(Base(Reduced{model::AttitudeModelParams::From(c.params), c.frame},
-                             c.safety.collision_radius)),
+        solver_(Problem(ocp::WithInputRate<Base>(
+                    Base(Reduced{model::AttitudeModelParams::From(c.params), c.frame},
+                         c.safety.collision_radius))),
                 c.rti,
                 rti::StateBoundLayout{{0, 1, 2, 3, 4, 5}, {true, true, true, true, true, true}}) {
     const NmpcWeights& wt = c.weights;
@@ -358,6 +413,7 @@ class FollowerCore final : public NmpcCore {
     }
     first_ = false;
     ActiveNeighbours(in);
+    if (c_.compensation == Compensation::kObserver) Targets(in.disturbance);
     x0_ = Stage(in);
     SolveStep(&solver_, x0_, in.forced_failure, &out);
     return out;
@@ -405,6 +461,17 @@ class FollowerCore final : public NmpcCore {
     solver_.SetTerminalReference(yref_n_);
   }
 
+  // The hover target under d in the input and attitude rows of every stage (HoverTarget).
+  void Targets(const Vec3& d) {
+    const HoverTarget hover(d, yaw_ref_, solver_.problem().base.params);
+    for (int k = 0; k < solver_.horizon(); ++k) {
+      hover.WriteStage(&yref_[k], c_.params.mass);
+      solver_.SetReference(k, yref_[k]);
+    }
+    hover.WriteTerminal(&yref_n_);
+    solver_.SetTerminalReference(yref_n_);
+  }
+
   void ActiveNeighbours(const NmpcInput& in) {
     bool changed = false;
     for (int j = 0; j < nn_; ++j) {
@@ -442,6 +509,7 @@ class FollowerCore final : public NmpcCore {
       p[0] = yaw_ref_;
       p.segment<3>(Reduced::ParamRelPos(0)) = rel_mean + (k * ts) * vel_mean;
       p.segment<3>(Reduced::ParamVel(0)) = vel_mean;
+      p.segment<3>(Problem::kParamAcceleration) = in.disturbance;
       Vec3 lo = Vec3::Constant(-kInf), hi = Vec3::Constant(kInf);
       for (int j = 0; j < nn_; ++j) {
         if (!active_[j]) continue;
@@ -1129,6 +1197,11 @@ ControlOutput VehicleController::Step(double t) {
       }
       in.last_command = last_command_.allFinite() ? last_command_
                                                   : Vec3(config_.params.mass * kGravity, 0.0, 0.0);
+      // A non-finite estimate of d never enters the prediction (zero: today's controller).
+      if (config_.compensation == Compensation::kObserver && own.disturbance.allFinite()) {
+        in.disturbance = own.disturbance;
+      }
+      out.disturbance = in.disturbance;
       NearestObstacles(t, &in);
       // Fault injection (SafetyConfig::injected_failure_rate, 0 = off).
       in.forced_failure =

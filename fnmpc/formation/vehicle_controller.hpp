@@ -93,7 +93,10 @@ struct ControlOutput {
   /// Recovery ladder: the action taken at this step and why (kNone: nothing happened).
   RecoveryAction recovery = RecoveryAction::kNone;
   RecoveryReason recovery_reason = RecoveryReason::kNone;
-  int active_neighbours = 0;              ///< follower: neighbours in the cost at this step
+  int active_neighbours = 0;  ///< follower: neighbours in the cost at this step
+  /// External acceleration the NMPC predicted with ({n} axes) [m/s^2]; zero with
+  /// Compensation::kNone, NaN outside the NMPC.
+  Vec3 disturbance = Vec3::Constant(kNaN);
   Vec3 reference = Vec3::Constant(kNaN);  ///< leader position reference [m]
   double voltage = kNaN;                  ///< filtered measured battery voltage [V]
 };

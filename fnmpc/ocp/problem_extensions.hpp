@@ -8,10 +8,10 @@
 #include "fnmpc/model/rk4.hpp"
 
 /// Extensions of a least-squares problem (fnmpc/ocp/problems.hpp contract) for the
-/// controllers: collision avoidance and input-rate costs. Each wraps any problem, keeps its
-/// residuals and parameters first and appends its own, so the benchmark problems stay as the
-/// spec defines them. The wrapped problem's Jacobians are passed through temporaries that
-/// start as the caller's blocks, so only the entries the wrapped problem writes change (the
+/// controllers: collision avoidance, input-rate costs and an external acceleration. Each wraps any
+/// problem, keeps its residuals and parameters first and appends its own, so the benchmark problems
+/// stay as the spec defines them. The wrapped problem's Jacobians are passed through temporaries
+/// that start as the caller's blocks, so only the entries the wrapped problem writes change (the
 /// solver's sparsity detection relies on it).
 namespace fnmpc::ocp {
 
@@ -159,6 +159,50 @@ struct WithInputRate {
       yx->template leftCols<kNxBase>() = bx;
     }
     *y = yb;
+  }
+};
+
+/// External acceleration a (the disturbance observer's estimate, offset-free NMPC) as a stage
+/// parameter, appended after the wrapped problem's: the dynamics become
+///   p' = v,  v' = f_v(angles, u) + a
+/// for the wrapped problem's position block at `Pos` and velocity block at `Vel` (any model
+/// whose v' does not depend on p or v, as the quadrotor models: the other rows are untouched).
+/// Held constant over each interval, a adds exactly a dt to v and a dt^2 / 2 to p; RK4 is
+/// exact for that part too (its stages are linear in a constant forcing of a double
+/// integrator), so the interval map is the wrapped one plus these terms and its
+/// sensitivities A, B are the wrapped ones. With a = 0 the map is the wrapped problem's, to
+/// the bit. Residuals are the wrapped problem's.
+template <class P, int Pos = 0, int Vel = 3>
+struct WithAcceleration {
+  using Model = typename P::Model;
+  static constexpr int kNx = P::kNx, kNu = P::kNu, kNy = P::kNy, kNyN = P::kNyN, kNp = P::kNp + 3;
+  static_assert(Pos + 3 <= kNx && Vel + 3 <= kNx, "position and velocity blocks in the state");
+  /// Offset of the acceleration a [m/s^2] in the stage parameters.
+  static constexpr int kParamAcceleration = P::kNp;
+  P base;
+
+  explicit WithAcceleration(const P& p = P{}) : base(p) {}
+
+  /// Per-stage parameters of the solver contract (docs/rti.md): the wrapped problem's, then a.
+  using Params = Vec<kNp>;
+  Vec<kNx> Discretise(const Vec<kNx>& x, const Vec<kNu>& u, const Params& p, double dt, int steps,
+                      Mat<kNx, kNx>* A, Mat<kNx, kNu>* B) const {
+    const typename P::Params pb = p.template head<P::kNp>();
+    Vec<kNx> next = base.Discretise(x, u, pb, dt, steps, A, B);
+    const Vec3 a = p.template segment<3>(kParamAcceleration);
+    next.template segment<3>(Pos) += (0.5 * dt * dt) * a;
+    next.template segment<3>(Vel) += dt * a;
+    return next;
+  }
+
+  void StageResidual(const Vec<kNx>& x, const Vec<kNu>& u, const Vec<kNp>& p, Vec<kNy>* y,
+                     Mat<kNy, kNx>* yx, Mat<kNy, kNu>* yu) const {
+    base.StageResidual(x, u, p.template head<P::kNp>(), y, yx, yu);
+  }
+
+  void TerminalResidual(const Vec<kNx>& x, const Vec<kNp>& p, Vec<kNyN>* y,
+                        Mat<kNyN, kNx>* yx) const {
+    base.TerminalResidual(x, p.template head<P::kNp>(), y, yx);
   }
 };
 

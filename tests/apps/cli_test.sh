@@ -62,6 +62,22 @@ for d in 0 -5 nan inf 200; do
 done
 [[ -e "$tmp/d" ]] && { echo "FAIL: a refused run created its folder"; fails=$((fails + 1)); }
 
+# ---- Compensation levels (issue #17): the planned ones are refused as not implemented; the
+# level is recorded in summary.json at the top and per run.
+for level in wake cooperative; do
+  expect 1 "--compensation $level refused" -- "$fnmpc" run "$tri" --compensation "$level" -o "$tmp/c"
+  stderr_has "'$level' is not implemented yet" "--compensation $level says why"
+done
+expect 1 "--compensation bogus refused" -- "$fnmpc" run "$tri" --compensation bogus -o "$tmp/c"
+stderr_has "must be one of none, observer" "--compensation bogus lists the levels"
+[[ -e "$tmp/c" ]] && { echo "FAIL: a refused run created its folder"; fails=$((fails + 1)); }
+expect 0 "--compensation observer flies" -- "$fnmpc" run "$tri" --compensation observer --duration 14 -q -o "$tmp/obs"
+for f in "$tmp/obs/summary.json" "$tmp/obs/run-01/summary.json"; do
+  grep -q '"compensation": "observer"' "$f" || { echo "FAIL: $f lacks the level"; fails=$((fails + 1)); }
+done
+head -1 "$tmp/obs/run-01/follower1.csv" | grep -q ',est_fx,est_fy,est_fz$' ||
+  { echo "FAIL: the CSV lacks est_f*"; fails=$((fails + 1)); }
+
 # ---- Reused folder (item 10).
 mkdir -p "$tmp/used" && echo stale >"$tmp/used/ghost.csv"
 expect 1 "non-empty -o refused without --overwrite" -- "$fnmpc" run "$tri" -o "$tmp/used"

@@ -147,5 +147,36 @@ TEST(ScenarioSettingsDocTest, QpSoftBoundsAndShortcutAreSettable) {
   }
 }
 
+// controller.compensation (issue #17): a name of the list; the planned levels are refused as
+// not implemented yet, with the file, line and key.
+TEST(ScenarioSettingsDocTest, CompensationAcceptsImplementedLevelsOnly) {
+  const std::string text = test::ShippedScenarioText("triangle.yaml");
+  auto with = [&text](const std::string& level) {
+    YAML::Node root = YAML::Load(text);
+    root["controller"]["compensation"] = level;
+    std::stringstream out;
+    out << root;
+    return ParseScenario(YamlMap::LoadString(out.str(), "s.yaml"));
+  };
+  EXPECT_EQ(ParseScenario(YamlMap::LoadString(text, "t.yaml")).compensation,
+            formation::Compensation::kNone);
+  EXPECT_EQ(with("observer").compensation, formation::Compensation::kObserver);
+  EXPECT_EQ(with("none").compensation, formation::Compensation::kNone);
+  for (const std::string level : {"wake", "cooperative", "Observer"}) {
+    try {
+      with(level);
+      FAIL() << level << " was accepted";
+    } catch (const ConfigError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("s.yaml:"), std::string::npos) << what;
+      EXPECT_NE(what.find("key 'controller.compensation'"), std::string::npos) << what;
+      EXPECT_NE(what.find(level == "Observer" ? "must be one of none, observer"
+                                              : "is not implemented yet"),
+                std::string::npos)
+          << what;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace fnmpc::config

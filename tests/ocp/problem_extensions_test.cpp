@@ -129,5 +129,87 @@ TEST(ProblemExtensionsTest, InputMemoryModelCarriesTheInput) {
   }
 }
 
+using Accel = WithAcceleration<Full>;
+
+// The interval map of the wrapped problem's model with v' + a, integrated by the generic
+// RK4 (rk4.hpp) from the flow: what WithAcceleration's closed form must equal.
+Vec<Accel::kNx> GenericRk4WithAcceleration(const Accel& prob, const Vec<Accel::kNx>& x,
+                                           const Vec3& u, const Accel::Params& p, double dt,
+                                           int steps) {
+  using M = Full::Model;
+  const auto flow = [&](const Vec<M::kNx>& z, const Vec<3>& v, Vec<M::kNx>* f,
+                        Mat<M::kNx, M::kNx>* /*fx*/, Mat<M::kNx, 3>* /*fu*/) {
+    // The quadrotor's own flow plus a; the input memory is not a flow (compared apart).
+    *f = Vec<M::kNx>::Zero();
+    f->template head<9>() =
+        model::QuadrotorModel::Flow<double>(z.template head<9>(), v, p[0], prob.base.params);
+    f->template segment<3>(model::QuadrotorModel::kVel) +=
+        p.template segment<3>(Accel::kParamAcceleration);
+  };
+  return model::IntegrateRk4<M::kNx, 3>(flow, x, u, dt, steps);
+}
+
+TEST(ProblemExtensionsTest, AccelerationParameterAddsItsExactDoubleIntegral) {
+  // Given the follower problem of the controllers wrapped with an acceleration parameter
+  std::mt19937 rng(19);
+  std::uniform_real_distribution<double> U(-0.3, 0.3);
+  const Accel prob(Full(Obst(ReducedFollowerProblem<2>{}, 0.45)));
+  static_assert(Accel::kNp == Full::kNp + 3 && Accel::kParamAcceleration == Full::kNp);
+  for (int trial = 0; trial < 10; ++trial) {
+    Vec<Accel::kNx> x;
+    for (int i = 0; i < Accel::kNx; ++i) x[i] = U(rng);
+    const Vec3 u(13.0 + U(rng), U(rng), U(rng));
+    Accel::Params p;
+    for (int i = 0; i < Accel::kNp; ++i) p[i] = 3.0 * U(rng);
+    const double dt = 0.05;
+    const int steps = 2;
+    // When discretised with sensitivities
+    Mat<Accel::kNx, Accel::kNx> A = Mat<Accel::kNx, Accel::kNx>::Zero(), A0 = A;
+    Mat<Accel::kNx, Accel::kNu> B = Mat<Accel::kNx, Accel::kNu>::Zero(), B0 = B;
+    const Vec<Accel::kNx> next = prob.Discretise(x, u, p, dt, steps, &A, &B);
+    const Vec<Accel::kNx> plain =
+        prob.base.Discretise(x, u, p.head<Full::kNp>(), dt, steps, &A0, &B0);
+    // Then the map is the generic RK4 of the flow with v' + a (the closed form is exact)
+    EXPECT_LT((next - GenericRk4WithAcceleration(prob, x, u, p, dt, steps))
+                  .head<9>()
+                  .cwiseAbs()
+                  .maxCoeff(),
+              1e-12);
+    EXPECT_EQ(next.tail<3>(), u);
+    // And a shifts p by a dt^2 / 2 and v by a dt, nothing else
+    const Vec3 a = p.segment<3>(Accel::kParamAcceleration);
+    Vec<Accel::kNx> shift = Vec<Accel::kNx>::Zero();
+    shift.segment<3>(0) = 0.5 * dt * dt * a;
+    shift.segment<3>(3) = dt * a;
+    EXPECT_LT((next - plain - shift).cwiseAbs().maxCoeff(), 1e-14);
+    // And the sensitivities are the wrapped ones, which match central differences
+    EXPECT_EQ(A, A0);
+    EXPECT_EQ(B, B0);
+    using ::fnmpc::testing::NumericJacobian;
+    const auto map_x = [&](const Vec<Accel::kNx>& z) {
+      return prob.Discretise(z, u, p, dt, steps, nullptr, nullptr);
+    };
+    const auto map_u = [&](const Vec<Accel::kNu>& v) {
+      return prob.Discretise(x, v, p, dt, steps, nullptr, nullptr);
+    };
+    EXPECT_LT((NumericJacobian<Accel::kNx>(x, map_x) - A).cwiseAbs().maxCoeff(), 1e-6);
+    EXPECT_LT((NumericJacobian<Accel::kNu>(u, map_u) - B).cwiseAbs().maxCoeff(), 1e-6);
+    // And the residuals and their Jacobians are the wrapped problem's
+    CheckJacobians(prob, x, u, p);
+    Vec<Accel::kNy> y;
+    Vec<Full::kNy> yb;
+    prob.StageResidual(x, u, p, &y, nullptr, nullptr);
+    prob.base.StageResidual(x, u, p.head<Full::kNp>(), &yb, nullptr, nullptr);
+    EXPECT_EQ(y, yb);
+  }
+  // And with a = 0 the map is the wrapped problem's to the bit
+  Vec<Accel::kNx> x = Vec<Accel::kNx>::Constant(0.1);
+  Accel::Params p = Accel::Params::Zero();
+  p[0] = 0.2;
+  EXPECT_EQ(prob.Discretise(x, Vec3(13.0, 0.05, -0.02), p, 0.05, 2, nullptr, nullptr),
+            prob.base.Discretise(x, Vec3(13.0, 0.05, -0.02), p.head<Full::kNp>(), 0.05, 2, nullptr,
+                                 nullptr));
+}
+
 }  // namespace
 }  // namespace fnmpc::ocp

@@ -188,7 +188,7 @@ int Convert(const std::string& bag_file, const std::string& scenario_file, const
           "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
           "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
           "{:d},{:.6g},{:.6g},{:.6g},{:.6g},{},{},{:d},{},{:d},{},{:.4f},{:.4f},{},{},{},"
-          "{:.5f},{:.5f},{:.5f}\n",
+          "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f}\n",
           t, sp.phase, x.position.x(), x.position.y(), x.position.z(), x.velocity.x(),
           x.velocity.y(), x.velocity.z(), x.euler.x(), x.euler.y(), x.euler.z(), ep.x(), ep.y(),
           ep.z(), ev.x(), ev.y(), ev.z(), ee.x(), ee.y(), ee.z(), sp.thrust, sp.throttle, sp.roll,
@@ -201,7 +201,8 @@ int Convert(const std::string& bag_file, const std::string& scenario_file, const
           dg && dg->fallback ? 1 : 0, dg ? dg->status : std::string("?"), dg && dg->guarded ? 1 : 0,
           dg ? dg->estimator_rejections : 0, x.voltage, dg ? dg->voltage : nan,
           dg ? dg->recovery : std::string("none"), dg ? dg->recovery_reason : std::string("none"),
-          dg ? dg->active_neighbours : 0, nan, nan, nan);  // aero_f*: not in the bag
+          dg ? dg->active_neighbours : 0, nan, nan, nan, nan, nan,
+          nan);  // aero_f*, est_f*: not in the bag
     }
     nlohmann::json j;
     j["role"] = v.leader ? "leader" : "follower";
