@@ -98,7 +98,7 @@ def plot(csv_path, out):
         ax.grid(True, alpha=0.3)
         ax.legend(loc="upper right", fontsize=8)
     axes[-1].set_xlabel("t [s]")
-    fig.suptitle(os.path.relpath(csv_path))
+    fig.suptitle("/".join(os.path.abspath(csv_path).split(os.sep)[-3:]))
     fig.tight_layout()
     fig.savefig(out, dpi=110)
 
