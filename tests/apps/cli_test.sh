@@ -71,7 +71,7 @@ done
 expect 1 "--compensation bogus refused" -- "$fnmpc" run "$tri" --compensation bogus -o "$tmp/c"
 stderr_has "must be one of none, observer" "--compensation bogus lists the levels"
 [[ -e "$tmp/c" ]] && { echo "FAIL: a refused run created its folder"; fails=$((fails + 1)); }
-expect 0 "--compensation observer flies" -- "$fnmpc" run "$tri" --compensation observer --duration 14 -q -o "$tmp/obs"
+expect 0 "--compensation observer flies" -- "$fnmpc" run "$tri" --compensation observer --duration 20 -q -o "$tmp/obs"
 for f in "$tmp/obs/summary.json" "$tmp/obs/run-01/summary.json"; do
   grep -q '"compensation": "observer"' "$f" || { echo "FAIL: $f lacks the level"; fails=$((fails + 1)); }
 done
