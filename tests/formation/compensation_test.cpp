@@ -114,8 +114,12 @@ TEST(CompensationTest, ObserverNeverPredictsWithANonFiniteEstimate) {
     const ControlOutput o = c.ControlWithEstimates(k * kTs, e, {});
     // Then the commands stay finite, and the NaN estimate is replaced by zero
     ASSERT_TRUE(std::isfinite(o.thrust) && std::isfinite(o.roll) && std::isfinite(o.pitch));
-    if (o.nmpc && k * kTs > 5.0) EXPECT_EQ(o.disturbance, Vec3::Zero());
-    if (o.nmpc && k * kTs <= 5.0) EXPECT_EQ(o.disturbance, Vec3(0.1, 0.0, 0.0));
+    if (o.nmpc && k * kTs > 5.0) {
+      EXPECT_EQ(o.disturbance, Vec3::Zero());
+    }
+    if (o.nmpc && k * kTs <= 5.0) {
+      EXPECT_EQ(o.disturbance, Vec3(0.1, 0.0, 0.0));
+    }
     plant.Step(o);
   }
   EXPECT_EQ(c.phase(), FlightPhase::kNmpc);
