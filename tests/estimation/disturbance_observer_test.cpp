@@ -11,18 +11,13 @@
 #include <vector>
 
 #include "fnmpc/estimation/vehicle_ekf.hpp"
+#include "synthetic_truth.hpp"
 
 namespace fnmpc::estimation {
 namespace {
 
 using Idx = VehicleStateIndex;
-
-VehicleEkfConfig FlyingConfig() {
-  VehicleEkfConfig c;
-  c.initial_mode = VehicleMode::kFlying;
-  c.auto_mode_switch = false;
-  return c;
-}
+using testing::FlyingConfig;
 
 // Steady-state time constant of the filter's d for a continuous random walk (density q)
 // observed continuously (density r): K = sqrt(q / r), tau = 1 / K [s].

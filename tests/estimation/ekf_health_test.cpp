@@ -18,13 +18,7 @@ using testing::LissajousTrajectory;
 using testing::SensorStream;
 using testing::SensorStreamOptions;
 using Idx = VehicleStateIndex;
-
-VehicleEkfConfig FlyingConfig() {
-  VehicleEkfConfig c;
-  c.initial_mode = VehicleMode::kFlying;
-  c.auto_mode_switch = false;
-  return c;
-}
+using testing::FlyingConfig;
 
 SensorStream Stream(const VehicleEkfConfig& cfg, std::uint32_t seed, double t1, bool mocap = true) {
   std::mt19937 rng(seed);

@@ -14,8 +14,18 @@
 #include "fnmpc/core/rotation.hpp"
 #include "fnmpc/core/sensors.hpp"
 #include "fnmpc/core/types.hpp"
+#include "fnmpc/estimation/vehicle_ekf.hpp"
 
 namespace fnmpc::estimation::testing {
+
+/// A VehicleEkf configuration that starts in flight and stays there (no take-off/landing
+/// detection), for tests of the in-flight filter.
+inline VehicleEkfConfig FlyingConfig() {
+  VehicleEkfConfig c;
+  c.initial_mode = VehicleMode::kFlying;
+  c.auto_mode_switch = false;
+  return c;
+}
 
 /// Truth of one rigid body at one time.
 struct TruthSample {

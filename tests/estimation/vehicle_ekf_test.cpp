@@ -25,6 +25,7 @@ using testing::SensorStreamOptions;
 using testing::TruthSample;
 using testing::VerticalProfile;
 using Idx = VehicleStateIndex;
+using testing::FlyingConfig;
 
 VehicleStateVec ErrorVector(const VehicleEstimate& est, const TruthSample& tr, const Vec3& ba,
                             const Vec3& bg) {
@@ -55,13 +56,6 @@ struct FlightStats {
   int nees_count = 0;
   EkfCounters counters;
 };
-
-VehicleEkfConfig FlyingConfig() {
-  VehicleEkfConfig c;
-  c.initial_mode = VehicleMode::kFlying;
-  c.auto_mode_switch = false;
-  return c;
-}
 
 // Runs one flight on the Lissajous trajectory and accumulates errors (RMS sampled every
 // 0.05 s, NEES every 1 s after a 3 s burn-in so that samples are nearly independent).
