@@ -12,11 +12,10 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
-#include <fstream>
-#include <sstream>
 #include <string>
 #include <vector>
 
+#include "fnmpc/config/csv_reader.hpp"
 #include "fnmpc/config/vehicle_yaml.hpp"
 #include "fnmpc/sim/downwash.hpp"
 #include "fnmpc/sim/rotor_aero.hpp"
@@ -33,24 +32,6 @@ double ModelCt(const sim::RotorBlade& b, double static_thrust, double n, double 
   const double t =
       static_thrust * sim::AxialInflowThrustRatio(b, static_thrust, 2.0 * M_PI * n, j * n * d);
   return t / (b.air_density * n * n * d * d * d * d);
-}
-
-/// First data row (J, C_T) of the UIUC table.
-bool FirstPoint(const std::string& path, double* j, double* ct) {
-  std::ifstream f(path);
-  std::string line;
-  bool header = true;
-  while (std::getline(f, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    if (header) {
-      header = false;
-      continue;
-    }
-    char comma = 0;
-    std::istringstream s(line);
-    return static_cast<bool>(s >> *j >> comma >> *ct) && comma == ',';
-  }
-  return false;
 }
 
 void Propeller(double j0, double ct0) {
@@ -147,11 +128,10 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    double j0 = 0.0, ct0 = 0.0;
-    if (!FirstPoint(argv[1], &j0, &ct0)) {
-      std::fprintf(stderr, "%s: no 'J,CT' data row\n", argv[1]);
-      return 1;
-    }
+    // The UIUC table's first point (J, C_T); its source is quoted in '#' lines.
+    const fnmpc::config::CsvTable uiuc =
+        fnmpc::config::ReadCsv(argv[1], {"J", "CT"}, "J", /*hash_comments=*/true);
+    const double j0 = uiuc.Column("J")[0], ct0 = uiuc.Column("CT")[0];
     const fnmpc::model::VehicleParams p = fnmpc::config::LoadVehicleFile(
         std::string(FNMPC_SOURCE_DIR) + "/config/vehicles/storm-drone-4.yaml");
     Propeller(j0, ct0);

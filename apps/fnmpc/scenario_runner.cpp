@@ -105,46 +105,25 @@ void ApplyReality(const config::ScenarioConfig& sc, std::uint64_t seed, sim::Wor
   }
   wc->reality.rotor_aerodynamics = r.rotor_aerodynamics;
   wc->reality.wake = r.wake;
+  wc->sensor_reality = r.sensor_models;
   wc->sensor_reality.enabled = r.sensors;
-  {
-    const config::ScenarioReality::SensorModels& x = r.sensor_models;
-    sim::SensorRealitySettings& y = wc->sensor_reality;
-    auto set = [](double from, double* to) {
-      if (std::isfinite(from)) *to = from;
-    };
-    set(x.accel_bias, &y.accel_bias);
-    set(x.gyro_bias, &y.gyro_bias);
-    set(x.accel_bias_walk, &y.accel_bias_walk);
-    set(x.gyro_bias_walk, &y.gyro_bias_walk);
-    set(x.latency_jitter, &y.latency_jitter);
-    set(x.burst_share, &y.burst_share);
-    set(x.burst_length, &y.burst_length);
-    set(x.mocap_outlier_rate, &y.mocap_outlier_rate);
-    set(x.mocap_outlier_size, &y.mocap_outlier_size);
-    set(x.estimate_time_constant, &y.estimate_time_constant);
-    if (x.autopilot_estimate >= 0) y.autopilot_estimate = x.autopilot_estimate == 1;
-  }
   if (r.wake) wc->downwash.enabled = true;
-  const bool turbulence = std::isfinite(r.turbulence_w20) || r.turbulence_sigma.allFinite();
+  const config::ScenarioTurbulence& t = r.turbulence;
+  const bool turbulence = t.enabled();
   sim::WindSettings& w = wc->wind;
-  w.enabled = r.wind.norm() > 0.0 || r.gust_std > 0.0 || turbulence || !r.gusts.empty();
-  w.velocity = r.wind;
-  w.gust_std = r.gust_std;
-  w.gust_time_constant = r.gust_time_constant;
+  w = r.wind;
+  w.enabled =
+      w.velocity.norm() > 0.0 || w.gust_std > 0.0 || turbulence || !w.discrete_gusts.empty();
   w.turbulence = turbulence;
   if (turbulence) {
-    const double airspeed =
-        std::isfinite(r.turbulence_airspeed) ? r.turbulence_airspeed : r.wind.norm();
-    if (std::isfinite(r.turbulence_w20)) {
-      w.dryden = sim::LowAltitudeDryden(r.turbulence_w20, r.turbulence_height, airspeed);
+    const double airspeed = std::isfinite(t.airspeed) ? t.airspeed : w.velocity.norm();
+    if (std::isfinite(t.w20)) {
+      w.dryden = sim::LowAltitudeDryden(t.w20, t.height, airspeed);
     } else {
-      w.dryden.sigma = r.turbulence_sigma;
-      w.dryden.length_scale = r.turbulence_length_scale;
+      w.dryden.sigma = t.sigma;
+      w.dryden.length_scale = t.length_scale;
       w.dryden.airspeed = airspeed;
     }
-  }
-  for (const config::ScenarioGust& g : r.gusts) {
-    w.discrete_gusts.push_back({g.time, g.duration, g.amplitude});
   }
 }
 

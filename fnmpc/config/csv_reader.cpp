@@ -57,7 +57,12 @@ const std::vector<double>& CsvTable::Column(const std::string& name) const {
 }
 
 CsvTable ParseCsv(const std::string& text, const std::string& name,
-                  const std::vector<std::string>& required, const std::string& time_column) {
+                  const std::vector<std::string>& required, const std::string& time_column,
+                  bool hash_comments) {
+  const auto skipped = [hash_comments](const std::string& l) {
+    const std::string t = Trim(l);
+    return t.empty() || (hash_comments && t.front() == '#');
+  };
   CsvTable table;
   table.file_ = name;
   table.names_ = required;
@@ -69,7 +74,7 @@ CsvTable ParseCsv(const std::string& text, const std::string& name,
   std::vector<Cell> header;
   while (std::getline(in, line)) {
     ++line_no;
-    if (!Trim(line).empty()) {
+    if (!skipped(line)) {
       header = SplitLine(line);
       break;
     }
@@ -102,7 +107,7 @@ CsvTable ParseCsv(const std::string& text, const std::string& name,
   const std::size_t time_r = static_cast<std::size_t>(time_it - required.begin());
   while (std::getline(in, line)) {
     ++line_no;
-    if (Trim(line).empty()) continue;
+    if (skipped(line)) continue;
     const std::vector<Cell> cells = SplitLine(line);
     for (std::size_t r = 0; r < required.size(); ++r) {
       if (index[r] >= cells.size()) {
@@ -137,8 +142,8 @@ CsvTable ParseCsv(const std::string& text, const std::string& name,
 }
 
 CsvTable ReadCsv(const std::string& path, const std::vector<std::string>& required,
-                 const std::string& time_column) {
-  return ParseCsv(ReadTextFile(path), path, required, time_column);
+                 const std::string& time_column, bool hash_comments) {
+  return ParseCsv(ReadTextFile(path), path, required, time_column, hash_comments);
 }
 
 }  // namespace fnmpc::config

@@ -22,7 +22,7 @@ class CsvTable {
 
  private:
   friend CsvTable ParseCsv(const std::string&, const std::string&, const std::vector<std::string>&,
-                           const std::string&);
+                           const std::string&, bool);
   std::string file_;
   std::vector<std::string> names_;
   std::vector<std::vector<double>> columns_;
@@ -33,12 +33,14 @@ class CsvTable {
 /// column, a row with too few cells, a non-numeric, NaN or infinite cell, no data rows, or
 /// (when `time_column` is not empty) a time that does not increase strictly throw
 /// ConfigError "file:line:column: column 'name': what" (line and character column 1-based;
-/// a missing column names the header line).
+/// a missing column names the header line). With `hash_comments`, lines starting with '#'
+/// are skipped (reference tables that carry their source above the header).
 CsvTable ReadCsv(const std::string& path, const std::vector<std::string>& required,
-                 const std::string& time_column = "");
+                 const std::string& time_column = "", bool hash_comments = false);
 
 /// Same as ReadCsv on CSV text; `name` stands for the file name in messages.
 CsvTable ParseCsv(const std::string& text, const std::string& name,
-                  const std::vector<std::string>& required, const std::string& time_column = "");
+                  const std::vector<std::string>& required, const std::string& time_column = "",
+                  bool hash_comments = false);
 
 }  // namespace fnmpc::config

@@ -163,121 +163,29 @@ ScenarioFaults ParseFaults(YamlMap fm, const ScenarioConfig& s) {
   return f;
 }
 
-/// A relative spread of the true plant: in [0, 1/3) (a 3-sd draw stays > 0).
-double Spread(YamlMap& m, const std::string& key, double fallback) {
-  const double v = m.Double(key, fallback);
-  if (!(v >= 0.0 && v < 1.0 / 3.0))
-    throw m.ErrorAt(key,
-                    "must be a relative standard deviation in [0, 1/3), got " + std::to_string(v));
-  return v;
-}
-
-model::PlantSpread ParsePlantSpread(YamlMap m) {
-  model::PlantSpread p;
-  p.mass = Spread(m, "mass", p.mass);
-  p.inertia = Spread(m, "inertia", p.inertia);
-  p.thrust_constant = Spread(m, "thrust_constant", p.thrust_constant);
-  p.torque_constant = Spread(m, "torque_constant", p.torque_constant);
-  p.motor_time_constant = Spread(m, "motor_time_constant", p.motor_time_constant);
-  p.thrust_scale = Spread(m, "thrust_scale", p.thrust_scale);
-  p.voltage_dependence = Spread(m, "voltage_dependence", p.voltage_dependence);
-  p.voltage_reference = Positive(m, "voltage_reference", p.voltage_reference);
-  p.attitude_gains = Spread(m, "attitude_gains", p.attitude_gains);
-  if (m.Has("attitude_bias_deg")) {
-    const std::vector<double> b = m.Doubles("attitude_bias_deg", 2);
-    if (!(b[0] >= 0.0 && b[1] >= b[0] && b[1] < 10.0))
-      throw m.ErrorAt("attitude_bias_deg", "must be [min, max] with 0 <= min <= max < 10 deg");
-    p.attitude_bias_min = b[0] * M_PI / 180.0;
-    p.attitude_bias_max = b[1] * M_PI / 180.0;
-  }
-  m.Finish();
-  return p;
-}
-
-Vec3 Finite3(YamlMap& m, const std::string& key, const Vec3& fallback) {
-  const Vec3 v = m.Vector3(key, fallback);
-  if (!v.allFinite()) throw m.ErrorAt(key, "must be finite");
-  return v;
-}
-
-void ParseWind(YamlMap m, ScenarioReality* r, double duration) {
-  r->wind = Finite3(m, "velocity", r->wind);
-  if (m.Has("gusts")) {
-    YamlMap g = m.Map("gusts");
-    r->gust_std = NonNegative(g, "std", r->gust_std);
-    r->gust_time_constant = Positive(g, "time_constant", r->gust_time_constant);
-    g.Finish();
-  }
-  if (m.Has("turbulence")) {
-    YamlMap t = m.Map("turbulence");
-    if (t.Has("w20")) {
-      if (t.Has("sigma") || t.Has("length_scale"))
-        throw t.ErrorAt("w20", "give either w20 and height or sigma and length_scale");
-      r->turbulence_w20 = NonNegative(t, "w20", 0.0);
-      r->turbulence_height = t.Double("height");
-      if (!(r->turbulence_height >= 3.048 && r->turbulence_height <= 304.8))
-        throw t.ErrorAt("height",
-                        "must be in [3.048, 304.8] m (10-1000 ft, MIL-F-8785C low altitude), got " +
-                            std::to_string(r->turbulence_height));
+/// What the `reality:` block's Serialize cannot say alone: the turbulence block's two forms,
+/// its airspeed without a mean wind and the gust times inside the run.
+void CheckReality(SettingsReader& reader, const ScenarioConfig& s) {
+  const ScenarioReality& r = s.reality;
+  if (YamlMap* t = reader.At("reality.wind.turbulence")) {
+    if (t->Has("w20")) {
+      if (t->Has("sigma") || t->Has("length_scale"))
+        throw t->ErrorAt("w20", "give either w20 and height or sigma and length_scale");
+      if (!t->Has("height")) throw t->ErrorAt("height", "missing required key (with w20)");
     } else {
-      r->turbulence_sigma = t.Vector3("sigma");
-      if (!r->turbulence_sigma.allFinite() || !(r->turbulence_sigma.array() >= 0.0).all())
-        throw t.ErrorAt("sigma", "every entry must be finite and >= 0");
-      r->turbulence_length_scale = Positive3(t, "length_scale", Vec3(200.0, 200.0, 50.0));
+      if (t->Has("height")) throw t->ErrorAt("height", "only with w20");
+      if (!t->Has("sigma")) throw t->ErrorAt("sigma", "missing required key (or w20 and height)");
     }
-    if (t.Has("airspeed")) r->turbulence_airspeed = Positive(t, "airspeed", 1.0);
-    if (!std::isfinite(r->turbulence_airspeed) && !(r->wind.norm() > 0.0))
-      throw t.Error("turbulence without a mean wind needs 'airspeed' (m/s) for the spectra");
-    t.Finish();
+    if (!std::isfinite(r.turbulence.airspeed) && !(r.wind.velocity.norm() > 0.0))
+      throw t->Error("turbulence without a mean wind needs 'airspeed' (m/s) for the spectra");
   }
-  if (m.Has("discrete_gusts")) {
-    for (YamlMap& gm : m.MapList("discrete_gusts")) {
-      ScenarioGust g;
-      g.time = gm.Double("time");
-      if (!(g.time >= 0.0 && g.time < duration))
-        throw gm.ErrorAt("time", "must be in [0, duration) s, got " + std::to_string(g.time));
-      g.duration = Positive(gm, "duration", g.duration);
-      g.amplitude = Finite3(gm, "amplitude", Vec3::Zero());
-      gm.Finish();
-      r->gusts.push_back(g);
+  for (std::size_t i = 0; i < r.wind.discrete_gusts.size(); ++i) {
+    const double time = r.wind.discrete_gusts[i].start;
+    if (!(time < s.duration)) {
+      throw reader.Required("reality.wind.discrete_gusts[" + std::to_string(i) + "]")
+          .ErrorAt("time", "must be in [0, duration) s, got " + std::to_string(time));
     }
   }
-  m.Finish();
-}
-
-ScenarioReality ParseReality(YamlMap m, double duration) {
-  ScenarioReality r;
-  r.enabled = m.Bool("enabled", true);
-  r.rotor_aerodynamics = m.Bool("rotor_aerodynamics", r.rotor_aerodynamics);
-  r.wake = m.Bool("wake", r.wake);
-  r.sensors = m.Bool("sensors", r.sensors);
-  if (m.Has("sensor_models")) {
-    YamlMap sm = m.Map("sensor_models");
-    ScenarioReality::SensorModels& x = r.sensor_models;
-    for (auto [key, field] :
-         {std::pair{"accel_bias", &x.accel_bias}, std::pair{"gyro_bias", &x.gyro_bias},
-          std::pair{"accel_bias_walk", &x.accel_bias_walk},
-          std::pair{"gyro_bias_walk", &x.gyro_bias_walk},
-          std::pair{"latency_jitter", &x.latency_jitter},
-          std::pair{"mocap_outlier_size", &x.mocap_outlier_size}}) {
-      if (sm.Has(key)) *field = NonNegative(sm, key, 0.0);
-    }
-    if (sm.Has("burst_length")) x.burst_length = Positive(sm, "burst_length", 0.1);
-    if (sm.Has("estimate_time_constant"))
-      x.estimate_time_constant = Positive(sm, "estimate_time_constant", 0.5);
-    if (sm.Has("burst_share")) {
-      x.burst_share = NonNegative(sm, "burst_share", 0.0);
-      if (!(x.burst_share < 0.5)) throw sm.ErrorAt("burst_share", "must be in [0, 0.5)");
-    }
-    if (sm.Has("mocap_outlier_rate")) x.mocap_outlier_rate = Share(sm, "mocap_outlier_rate");
-    if (sm.Has("autopilot_estimate"))
-      x.autopilot_estimate = sm.Bool("autopilot_estimate", true) ? 1 : 0;
-    sm.Finish();
-  }
-  if (m.Has("plant")) r.plant = ParsePlantSpread(m.Map("plant"));
-  if (m.Has("wind")) ParseWind(m.Map("wind"), &r, duration);
-  m.Finish();
-  return r;
 }
 
 // `vehicles:`, one by one; neighbours by name.
@@ -609,8 +517,13 @@ ScenarioConfig ParseScenario(YamlMap map) {
     }
   }
 
-  // ---- Reality (after the duration its gust times refer to).
-  if (map.Has("reality")) s.reality = ParseReality(map.Map("reality"), s.duration);
+  // ---- Reality (after the duration its gust times refer to): a block without `enabled` is on.
+  if (map.Has("reality")) {
+    s.reality.enabled = true;
+    reader.Required("reality");
+    reader.Nested("reality", &s.reality);
+    CheckReality(reader, s);
+  }
 
   // ---- Faults (after the vehicles, the leader mode and the duration they refer to).
   if (map.Has("faults")) s.faults = ParseFaults(map.Map("faults"), s);
@@ -650,6 +563,13 @@ void CheckDurationFlag(const ScenarioConfig& s, double duration) {
                       std::to_string(s.duration) + " s of " + s.file + "), got " +
                       std::to_string(duration));
   }
+}
+
+std::vector<SettingDoc> RealitySettingsDocs() {
+  ScenarioReality defaults;
+  SettingsDocWriter writer;
+  writer.Nested("reality", &defaults);
+  return writer.fields();
 }
 
 std::vector<SettingDoc> ScenarioSettingsDocs() {

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -15,6 +16,7 @@
 #include "fnmpc/formation/recovery.hpp"
 #include "fnmpc/model/true_plant.hpp"
 #include "fnmpc/model/vehicle_params.hpp"
+#include "fnmpc/sim/world.hpp"
 
 /// Formation scenario files (config/scenarios/*.yaml, every key documented in
 /// docs/scenarios.md): plain structs, mapped onto the controllers and the world by the app.
@@ -49,15 +51,37 @@ struct ScenarioVehicle {
   double plant_motor_time_constant = kNaN;  ///< [s]; NaN: the simulator's 0.02 s
 };
 
-/// A discrete "1-cosine" gust (`reality.wind.discrete_gusts`).
-struct ScenarioGust {
-  double time = 0.0;              ///< start [s]
-  double duration = 1.0;          ///< [s]
-  Vec3 amplitude = Vec3::Zero();  ///< peak velocity, world frame [m/s]
+/// Dryden turbulence of `reality.wind.turbulence`: from w20/height (MIL-F-8785C low altitude)
+/// when w20 is given, else from sigma/length_scale; off when neither is.
+struct ScenarioTurbulence {
+  double w20 = kNaN;                      ///< [m/s]
+  double height = kNaN;                   ///< [m]
+  Vec3 sigma = Vec3::Constant(kNaN);      ///< [m/s]
+  Vec3 length_scale{200.0, 200.0, 50.0};  ///< [m]
+  double airspeed = kNaN;                 ///< [m/s]; NaN: |wind velocity|
+  [[nodiscard]] bool enabled() const { return std::isfinite(w20) || sigma.allFinite(); }
+
+  template <class Archive>
+  void Serialize(Archive* a) {
+    a->Visit("w20", &w20, NonNegative(),
+             "[m/s] wind at 20 ft: MIL-F-8785C low-altitude intensities and scales (with "
+             "`height`; not with `sigma`, `length_scale`)");
+    a->Visit("height", &height, AnyValue().AtLeast(3.048, "m").AtMost(304.8, "m"),
+             "[m] height of the low-altitude model (10–1000 ft); required with `w20`");
+    a->Visit("sigma", &sigma, NonNegativeEntries(),
+             "[m/s] intensities of u, v, w given directly; required without `w20`");
+    a->Visit("length_scale", &length_scale, Positive(),
+             "[m] scale lengths of u, v, w with `sigma`");
+    a->Visit("airspeed", &airspeed, Positive(),
+             "[m/s] converts the spectra to time; default |`wind.velocity`|, required when "
+             "that is zero");
+  }
 };
 
 /// The `reality:` block (docs/scenarios.md, docs/simulator.md "Reality"): what makes the
-/// simulated plant differ from the controllers' model. Off when the block is absent.
+/// simulated plant differ from the controllers' model. Off when the block is absent, on when
+/// it is given (even empty) unless `enabled: false`. Its parts are the simulator's and the
+/// plant model's own settings structs.
 struct ScenarioReality {
   bool enabled = false;
   model::PlantSpread plant;        ///< spread of the true plant around the vehicle file
@@ -65,24 +89,29 @@ struct ScenarioReality {
   bool wake = true;  ///< every vehicle's advected, fluctuating wake (also with downwash: false)
   bool sensors =
       true;  ///< IMU biases, latency jitter, bursty dropouts, mocap outliers, own attitude estimate
-  /// `reality.sensor_models`: the parameters of those models (sim::SensorRealitySettings;
-  /// NaN / -1: the simulator's default).
-  struct SensorModels {
-    double accel_bias = kNaN, gyro_bias = kNaN, accel_bias_walk = kNaN, gyro_bias_walk = kNaN;
-    double latency_jitter = kNaN, burst_share = kNaN, burst_length = kNaN;
-    double mocap_outlier_rate = kNaN, mocap_outlier_size = kNaN, estimate_time_constant = kNaN;
-    int autopilot_estimate = -1;  ///< -1 default, 0 off, 1 on
-  } sensor_models;
-  Vec3 wind = Vec3::Zero();         ///< constant wind, world frame [m/s]
-  double gust_std = 0.0;            ///< Gauss-Markov gusts: standard deviation [m/s]
-  double gust_time_constant = 2.0;  ///< [s]
-  /// Dryden turbulence: from w20/height (MIL-F-8785C low altitude) when w20 is finite, else
-  /// from sigma/length_scale when sigma is finite; off when both are NaN.
-  double turbulence_w20 = kNaN, turbulence_height = kNaN;  ///< [m/s], [m]
-  Vec3 turbulence_sigma = Vec3::Constant(kNaN);            ///< [m/s]
-  Vec3 turbulence_length_scale = Vec3::Constant(kNaN);     ///< [m]
-  double turbulence_airspeed = kNaN;                       ///< [m/s]; NaN: |wind|
-  std::vector<ScenarioGust> gusts;
+  sim::SensorRealitySettings sensor_models;  ///< their parameters (`enabled`: `sensors`)
+  sim::WindSettings wind;         ///< velocity, gusts, discrete gusts (`enabled` follows)
+  ScenarioTurbulence turbulence;  ///< `wind.turbulence`
+
+  /// Every key of the block (below `reality.`), accepted values and meaning.
+  template <class Archive>
+  void Serialize(Archive* a) {
+    a->Visit("enabled", &enabled, AnyValue(),
+             "switch of the whole block; a `reality:` block without it is on, no block is off; "
+             "`fnmpc run --reality on|off` overrides it");
+    a->Visit("rotor_aerodynamics", &rotor_aerodynamics, AnyValue(),
+             "rotor thrust in the actual axial inflow (BEMT), ground effect, rotor drag");
+    a->Visit("wake", &wake, AnyValue(),
+             "every vehicle's advected, turbulent wake acting on the others' rotors and body (also "
+             "when `downwash: false`; `--downwash off` turns it off)");
+    a->Visit("sensors", &sensors, AnyValue(),
+             "IMU bias random walk, latency jitter, bursty dropouts, mocap outliers, and the "
+             "autopilot's attitude loop on its own gyro-driven estimate (`sensor_models`)");
+    a->Nested("sensor_models", &sensor_models);
+    a->Nested("plant", &plant);
+    a->Nested("wind", &wind);
+    a->Nested("wind.turbulence", &turbulence);
+  }
 };
 
 /// NMPC weights: the controllers' own struct.
@@ -164,7 +193,6 @@ inline formation::ControllerSettings ScenarioControllerDefaults() {
 
 /// Upper bounds on the work a scenario may ask for (docs/failure.md, "Limits").
 inline constexpr double kMaxScenarioDuration = 3600.0;  ///< [s] simulated
-inline constexpr int kMaxIntegratorSteps = 100;
 inline constexpr int kMaxLeaderMoves = 1000;
 inline constexpr int kMaxWaypoints = 1000;
 inline constexpr int kMaxVehicles = 128;
@@ -226,6 +254,8 @@ ScenarioConfig ParseScenario(YamlMap map);
 /// Every key of ScenarioConfig::Serialize with its default, accepted values and meaning:
 /// the source of docs/scenarios.md's settings table (checked by scenario_settings_doc_test).
 std::vector<SettingDoc> ScenarioSettingsDocs();
+/// The same for the `reality:` block (ScenarioReality::Serialize, keys `reality.*`).
+std::vector<SettingDoc> RealitySettingsDocs();
 
 /// Effective landing time of vehicle i [s] (its own or the scenario's).
 double LandingTime(const ScenarioConfig& s, int i);

@@ -2,22 +2,27 @@
 #include "fnmpc/config/settings_doc.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <set>
 #include <sstream>
 
 namespace fnmpc::config {
 
 void SettingsDocWriter::VisitRange(std::string_view key, double* lo, double* hi,
-                                   std::string_view doc) {
+                                   const RangeLimit& limit, std::string_view doc) {
   std::string range = "[";
-  range.append(Format(*lo)).append(", ").append(Format(*hi)).append("]");
-  fields_.push_back({prefix_ + std::string(key), range, "0 ≤ min < max", std::string(doc)});
+  range.append(Format(*lo / limit.unit_value))
+      .append(", ")
+      .append(Format(*hi / limit.unit_value))
+      .append("]");
+  fields_.push_back({Key(key), range, limit.Describe(), std::string(doc)});
 }
 
-std::string SettingsDocWriter::Format(double v) { return Limit::Num(v); }
+std::string SettingsDocWriter::Format(double v) { return std::isnan(v) ? "none" : Limit::Num(v); }
 std::string SettingsDocWriter::Format(int v) { return std::to_string(v); }
 std::string SettingsDocWriter::Format(bool v) { return v ? "true" : "false"; }
 std::string SettingsDocWriter::Format(const Vec3& v) {
+  if (v.array().isNaN().all()) return "none";
   std::string s = "[";
   s.append(Format(v.x())).append(", ").append(Format(v.y())).append(", ").append(Format(v.z()));
   return s.append("]");
@@ -36,25 +41,38 @@ std::string SettingsTable(const std::vector<SettingDoc>& fields) {
   return s.str();
 }
 
+std::string TableBegin(std::string_view table) {
+  std::string m = "<!-- ";
+  return m.append(table).append(
+      " table: generated from the Serialize definitions, do not edit -->");
+}
+
+std::string TableEnd(std::string_view table) {
+  std::string m = "<!-- end of ";
+  return m.append(table).append(" table -->");
+}
+
 namespace {
 
-/// The text between the markers, or npos positions when a marker is missing.
-std::pair<std::size_t, std::size_t> Block(const std::string& markdown) {
-  const std::size_t b = markdown.find(kSettingsBegin);
+/// The text between the markers of `table`, or npos positions when a marker is missing.
+std::pair<std::size_t, std::size_t> Block(const std::string& markdown, std::string_view table) {
+  const std::string begin = TableBegin(table);
+  const std::size_t b = markdown.find(begin);
   if (b == std::string::npos) return {std::string::npos, std::string::npos};
-  const std::size_t start = b + kSettingsBegin.size() + 1;  // after the marker's newline
-  const std::size_t end = markdown.find(kSettingsEnd, start);
+  const std::size_t start = b + begin.size() + 1;  // after the marker's newline
+  const std::size_t end = markdown.find(TableEnd(table), start);
   return {start, end};
 }
 
 }  // namespace
 
 std::vector<std::string> SettingsDocDrift(const std::string& markdown,
-                                          const std::vector<SettingDoc>& defined) {
+                                          const std::vector<SettingDoc>& defined,
+                                          std::string_view table) {
   std::vector<std::string> drift;
-  const auto [start, end] = Block(markdown);
+  const auto [start, end] = Block(markdown, table);
   if (start == std::string::npos || end == std::string::npos) {
-    drift.push_back("the settings table markers are missing");
+    drift.push_back("the " + std::string(table) + " table markers are missing");
     return drift;
   }
   const std::string block = markdown.substr(start, end - start);
@@ -75,15 +93,16 @@ std::vector<std::string> SettingsDocDrift(const std::string& markdown,
     if (documented_keys.count(f.key) == 0) drift.push_back("defined but not documented: " + f.key);
   }
   if (drift.empty() && block != SettingsTable(defined)) {
-    drift.push_back(
-        "the settings table differs from the definitions (default, accepted values or "
-        "meaning): regenerate it");
+    drift.push_back("the " + std::string(table) +
+                    " table differs from the definitions (default, accepted values or "
+                    "meaning): regenerate it");
   }
   return drift;
 }
 
-std::string WithSettingsTable(const std::string& markdown, const std::vector<SettingDoc>& defined) {
-  const auto [start, end] = Block(markdown);
+std::string WithSettingsTable(const std::string& markdown, const std::vector<SettingDoc>& defined,
+                              std::string_view table) {
+  const auto [start, end] = Block(markdown, table);
   if (start == std::string::npos || end == std::string::npos) return markdown;
   return markdown.substr(0, start) + SettingsTable(defined) + markdown.substr(end);
 }

@@ -35,21 +35,21 @@ void SettingsReader::Finish() {
 }
 
 std::pair<YamlMap*, std::string> SettingsReader::Place(std::string_view key) {
-  const std::string full = prefix_ + std::string(key);
+  const std::string full = Key(key);
   const std::size_t dot = full.rfind('.');
   if (dot == std::string::npos) return {root_, full};
   return {At(full.substr(0, dot)), full.substr(dot + 1)};
 }
 
 void SettingsReader::VisitRange(std::string_view key, double* lo, double* hi,
-                                std::string_view /*doc*/) {
+                                const RangeLimit& limit, std::string_view /*doc*/) {
   auto [map, leaf] = Place(key);
   if (map == nullptr || !map->Has(leaf)) return;
   const std::vector<double> v = map->Doubles(leaf, 2);
-  if (!(v[0] >= 0.0 && v[1] > v[0]))
-    throw map->ErrorAt(leaf, "must be [min, max] with 0 <= min < max");
-  *lo = v[0];
-  *hi = v[1];
+  const std::string bad = limit.Check(v[0], v[1]);
+  if (!bad.empty()) throw map->ErrorAt(leaf, bad);
+  *lo = v[0] * limit.unit_value;
+  *hi = v[1] * limit.unit_value;
 }
 
 void SettingsReader::ReadValue(YamlMap* m, const std::string& key, const Limit& limit, double* v) {

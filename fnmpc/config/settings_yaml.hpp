@@ -5,7 +5,9 @@
 #include <string>
 #include <string_view>
 #include <utility>
+#include <vector>
 
+#include "fnmpc/config/settings_archive.hpp"
 #include "fnmpc/config/yaml_reader.hpp"
 #include "fnmpc/core/serialize.hpp"
 #include "fnmpc/core/types.hpp"
@@ -18,15 +20,9 @@ namespace fnmpc::config {
 /// each opened once and shared with hand-written parsing through At()/Required(), so that
 /// Finish() reports any key nobody read. Errors are ConfigErrors with file:line:column and
 /// the full key.
-class SettingsReader {
+class SettingsReader : public SettingsArchive<SettingsReader> {
  public:
   explicit SettingsReader(YamlMap* root) : root_(root) {}
-
-  /// Walks `settings->Serialize(this)` below the current key prefix.
-  template <class S>
-  void Read(S* settings) {
-    settings->Serialize(this);
-  }
 
   /// The mapping at a dotted path ("" is the root), opened once; nullptr when absent.
   YamlMap* At(const std::string& path);
@@ -39,23 +35,31 @@ class SettingsReader {
   template <class T>
   void Visit(std::string_view key, T* value, const Limit& limit, std::string_view /*doc*/) {
     auto [map, leaf] = Place(key);
-    if (map == nullptr || !map->Has(leaf)) return;
-    ReadValue(map, leaf, limit, value);
+    if (map == nullptr || (!map->Has(leaf) && !limit.required)) return;
+    ReadValue(map, leaf, limit, value);  // a required key that is absent: "missing required key"
   }
-  void VisitRange(std::string_view key, double* lo, double* hi, std::string_view doc);
+  /// A list of mappings, each item's fields walked below "<key>[i].". Present: replaces the
+  /// default list.
+  template <class T>
+  void VisitList(std::string_view key, std::vector<T>* list, std::string_view /*doc*/) {
+    auto [map, leaf] = Place(key);
+    if (map == nullptr || !map->Has(leaf)) return;
+    std::vector<YamlMap> items = map->MapList(leaf);
+    list->assign(items.size(), T{});
+    for (std::size_t i = 0; i < items.size(); ++i) {
+      const std::string item = std::string(key) + "[" + std::to_string(i) + "]";
+      maps_.emplace(Key(item), std::move(items[i]));
+      Nested(item, &(*list)[i]);
+    }
+  }
   template <class E>
   void VisitChoice(std::string_view key, E* value, const Choice& choice, std::string_view /*doc*/) {
     auto [map, leaf] = Place(key);
     if (map == nullptr || !map->Has(leaf)) return;
     *value = static_cast<E>(ReadChoice(map, leaf, choice));
   }
-  template <class S>
-  void Nested(std::string_view key, S* settings) {
-    const std::string saved = prefix_;
-    prefix_ += std::string(key) + ".";
-    settings->Serialize(this);
-    prefix_ = saved;
-  }
+  void VisitRange(std::string_view key, double* lo, double* hi, const RangeLimit& limit,
+                  std::string_view doc);
 
  private:
   /// The mapping holding prefix + key and the key's last component.
@@ -67,7 +71,6 @@ class SettingsReader {
   static int ReadChoice(YamlMap* m, const std::string& key, const Choice& choice);
 
   YamlMap* root_;
-  std::string prefix_;
   std::map<std::string, YamlMap> maps_;  // by dotted path; node addresses are stable
 };
 

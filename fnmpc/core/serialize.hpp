@@ -24,8 +24,9 @@ namespace fnmpc {
 /// What a field accepts. A reader rejects anything else with `Describe()`'s words and the
 /// value; the doc writer prints `Describe()`. Numbers must be finite unless kind is kAny.
 struct Limit {
-  enum class Kind { kAny, kPositive, kNonNegative, kIntRange, kNonNegativeEntries };
+  enum class Kind { kAny, kFinite, kPositive, kNonNegative, kIntRange, kNonNegativeEntries };
   Kind kind = Kind::kAny;
+  bool required = false;  ///< a reader rejects a mapping that holds the field's block but not it
   double lo = 0.0, hi = 0.0;  ///< kIntRange: [lo, hi]
   bool say_value = true;      ///< append ", got <value>" to the message
   /// Extra bound checked after `kind`: value < upper (or <= with upper_inclusive), value >=
@@ -36,30 +37,16 @@ struct Limit {
   const char* unit = "";
 
   [[nodiscard]] Limit Below(double v, const char* u) const {
-    Limit l = *this;
-    l.upper = v;
-    l.upper_inclusive = false;
-    l.unit = u;
-    return l;
+    return With(&Limit::upper, v).With(&Limit::upper_inclusive, false).With(&Limit::unit, u);
   }
   [[nodiscard]] Limit AtMost(double v, const char* u) const {
-    Limit l = *this;
-    l.upper = v;
-    l.upper_inclusive = true;
-    l.unit = u;
-    return l;
+    return With(&Limit::upper, v).With(&Limit::upper_inclusive, true).With(&Limit::unit, u);
   }
   [[nodiscard]] Limit AtLeast(double v, const char* u) const {
-    Limit l = *this;
-    l.lower = v;
-    l.unit = u;
-    return l;
+    return With(&Limit::lower, v).With(&Limit::unit, u);
   }
-  [[nodiscard]] Limit Quiet() const {
-    Limit l = *this;
-    l.say_value = false;
-    return l;
-  }
+  [[nodiscard]] Limit Quiet() const { return With(&Limit::say_value, false); }
+  [[nodiscard]] Limit Required() const { return With(&Limit::required, true); }
 
   /// Empty when `v` is accepted, else what it must be ("must be > 0, got -1").
   [[nodiscard]] std::string Check(double v) const {
@@ -69,6 +56,9 @@ struct Limit {
     std::string m;
     switch (kind) {
       case Kind::kAny:
+        break;
+      case Kind::kFinite:
+        if (!std::isfinite(v)) return m.append("must be finite");
         break;
       case Kind::kPositive:
         if (!(v > 0.0) || !std::isfinite(v)) return m.append("must be > 0").append(got);
@@ -100,27 +90,30 @@ struct Limit {
 
   /// What the field accepts, for the docs ("> 0", "1..100", "> 0, < 1.2 rad"; "" for kAny).
   [[nodiscard]] std::string Describe() const {
-    std::string d;
+    std::string d = required ? "required" : "";
+    auto add = [&d](const std::string& what) {
+      if (!d.empty()) d.append(", ");
+      d.append(what);
+    };
     switch (kind) {
       case Kind::kAny:
         break;
+      case Kind::kFinite:
+        add("finite");
+        break;
       case Kind::kPositive:
-        d = "> 0";
+        add("> 0");
         break;
       case Kind::kNonNegative:
       case Kind::kNonNegativeEntries:
-        d = "≥ 0";
+        add("≥ 0");
         break;
       case Kind::kIntRange:
-        d.append(Num(lo)).append("..").append(Num(hi));
+        add(Num(lo) + ".." + Num(hi));
         break;
     }
-    auto add = [&d](const char* op, double x, const std::string& unit) {
-      if (!d.empty()) d.append(", ");
-      d.append(op).append(Num(x)).append(unit);
-    };
-    if (std::isfinite(upper)) add(upper_inclusive ? "≤ " : "< ", upper, Unit());
-    if (std::isfinite(lower)) add("≥ ", lower, Unit());
+    if (std::isfinite(upper)) add((upper_inclusive ? "≤ " : "< ") + Num(upper) + Unit());
+    if (std::isfinite(lower)) add("≥ " + Num(lower) + Unit());
     return d;
   }
 
@@ -131,6 +124,13 @@ struct Limit {
   }
 
  private:
+  /// A copy with one member changed (the builders above).
+  template <class M, class V>
+  [[nodiscard]] Limit With(M Limit::*member, V value) const {
+    Limit l = *this;
+    l.*member = value;
+    return l;
+  }
   [[nodiscard]] std::string Unit() const {
     std::string u;
     if (*unit != '\0') u.append(" ").append(unit);
@@ -139,6 +139,7 @@ struct Limit {
 };
 
 inline Limit AnyValue() { return {}; }
+inline Limit Finite() { return {Limit::Kind::kFinite}; }
 inline Limit Positive() { return {Limit::Kind::kPositive}; }
 inline Limit NonNegative() { return {Limit::Kind::kNonNegative}; }
 /// Every entry of a vector >= 0 (weights).
@@ -192,6 +193,47 @@ struct Choice {
     std::string d;
     for (int i = 0; i < available; ++i) d.append(i > 0 ? ", " : "").append(names[i]);
     return d;
+  }
+};
+
+/// Fields listed by a callable, `list(archive)`: a nested block whose keys depend on where it
+/// sits (each sensor of SensorsConfig names its noise channels its own way).
+template <class F>
+struct FieldList {
+  F list;
+  template <class Archive>
+  void Serialize(Archive* a) {
+    list(a);
+  }
+};
+template <class F>
+FieldList<F> Fields(F list) {
+  return FieldList<F>{list};
+}
+
+/// What a [min, max] pair accepts (Serialize's VisitRange): 0 <= min < max (min <= max with
+/// `allow_equal`), max < `max_below`; the file gives both in a unit worth `unit_value` of the
+/// field's (pi / 180: degrees in the file, radians in the struct).
+struct RangeLimit {
+  bool allow_equal = false;
+  double max_below = std::numeric_limits<double>::infinity();
+  const char* unit = "";
+  double unit_value = 1.0;
+
+  /// Empty when [lo, hi] (in the file's unit) is accepted, else what it must be.
+  [[nodiscard]] std::string Check(double lo, double hi) const {
+    if (lo >= 0.0 && (allow_equal ? hi >= lo : hi > lo) && hi < max_below) return "";
+    return "must be [min, max] with " + Rule(" <= ", " < ");
+  }
+  /// What it accepts, for the docs ("0 ≤ min < max").
+  [[nodiscard]] std::string Describe() const { return Rule(" ≤ ", " < "); }
+
+ private:
+  [[nodiscard]] std::string Rule(const char* at_most, const char* below) const {
+    std::string r = std::string("0") + at_most + "min" + (allow_equal ? at_most : below) + "max";
+    if (std::isfinite(max_below)) r.append(below).append(Limit::Num(max_below));
+    if (*unit != '\0') r.append(" ").append(unit);
+    return r;
   }
 };
 

@@ -59,7 +59,7 @@ struct ControllerSettings {
     a->Visit("controller.use_throttle", &use_throttle, AnyValue(),
              "true: command the collective throttle from the thrust and the measured battery "
              "voltage; false: the thrust");
-    a->VisitRange("controller.bounds.thrust", &thrust_min, &thrust_max,
+    a->VisitRange("controller.bounds.thrust", &thrust_min, &thrust_max, RangeLimit{},
                   "[N] NMPC thrust input bounds [min, max]; min below every vehicle's weight m g, "
                   "max ≥ 1.2 m g");
     a->Visit("controller.bounds.attitude_ref", &max_attitude_ref, Positive().Below(1.2, "rad"),

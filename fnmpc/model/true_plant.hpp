@@ -3,6 +3,7 @@
 
 #include <cstdint>
 
+#include "fnmpc/core/serialize.hpp"
 #include "fnmpc/model/vehicle_params.hpp"
 
 /// The true plant of a simulated vehicle (issue #15): the controller keeps its vehicle file,
@@ -28,6 +29,30 @@ struct PlantSpread {
   double attitude_bias_min = 0.5 * 3.141592653589793 / 180.0;  ///< [rad] level calibration
   double attitude_bias_max = 2.0 * 3.141592653589793 / 180.0;  ///< [rad]
   double attitude_gains = 0.10;  ///< [-] autopilot K_p and K_d per axis
+
+  /// Every field with its key (scenario block `reality.plant`), accepted values and meaning.
+  /// A relative spread stays below 1/3: a 3-sd draw must not reach zero.
+  template <class Archive>
+  void Serialize(Archive* a) {
+    const Limit spread = NonNegative().Below(1.0 / 3.0, "");
+    a->Visit("mass", &mass, spread, "relative sd: mass factor 1 + sd N(0,1) (cut at ±3 sd)");
+    a->Visit("inertia", &inertia, spread, "relative sd, per axis");
+    a->Visit("thrust_constant", &thrust_constant, spread, "relative sd of T_k");
+    a->Visit("torque_constant", &torque_constant, spread, "relative sd of T_q");
+    a->Visit("motor_time_constant", &motor_time_constant, spread,
+             "relative sd around the simulator's 0.02 s");
+    a->Visit("thrust_scale", &thrust_scale, spread,
+             "relative sd of the throttle→thrust scale error (the plant's `bias.thrust`)");
+    a->Visit("voltage_dependence", &voltage_dependence, spread,
+             "relative sd of the error e of the throttle map's voltage dependence: P(f, V_ref + "
+             "(1+e)(V − V_ref))");
+    a->Visit("voltage_reference", &voltage_reference, Positive(), "[V] V_ref");
+    a->VisitRange("attitude_bias_deg", &attitude_bias_min, &attitude_bias_max,
+                  RangeLimit{true, 10.0, "deg", 3.141592653589793 / 180.0},
+                  "[deg] roll and pitch level-calibration biases, uniform magnitude, random sign");
+    a->Visit("attitude_gains", &attitude_gains, spread,
+             "relative sd of the autopilot K_p, K_d per axis");
+  }
 
   /// Throws std::invalid_argument naming the field on a negative or non-finite spread, a
   /// relative spread >= 1/3 (a 3-sd draw would reach zero) or bias_min > bias_max.

@@ -11,6 +11,10 @@
 
 namespace fnmpc::rti {
 
+/// The most RK4 steps per shooting interval a setting may ask for (a bound on the work of one
+/// linearisation; docs/failure.md "Limits").
+inline constexpr int kMaxIntegratorSteps = 100;
+
 /// Settings of the real-time-iteration solver (defaults: the reference work and the
 /// benchmark spec).
 struct RtiSettings {
@@ -31,7 +35,8 @@ struct RtiSettings {
   void Serialize(Archive* a) {
     a->Visit("sample_time", &sample_time, Positive(), "Ts [s], length of one interval");
     a->Visit("horizon", &horizon, IntIn(1, 100).Quiet(), "N, shooting intervals");
-    a->Visit("integrator_steps", &integrator_steps, IntIn(1, 100), "RK4 steps per interval");
+    a->Visit("integrator_steps", &integrator_steps, IntIn(1, kMaxIntegratorSteps),
+             "RK4 steps per interval");
     a->Visit("max_iterations", &max_iterations, IntIn(1, 100),
              "SQP iterations per call after the first (1 = pure RTI)");
     a->Visit("max_initial_iterations", &max_initial_iterations, IntIn(1, 1000),
@@ -78,17 +83,21 @@ struct StateBoundLayout {
 
 /// Outcome of one solver call.
 enum class RtiStatus : int {
-  kSuccess = 0,      ///< QP solved, iterate updated
-  kQpFailure = 1,    ///< QP infeasible or failed: fallback applied
-  kNanDetected = 2,  ///< NaN/Inf in the linearisation or the step: fallback applied
-  kInvalidInput = 3, ///< NaN/Inf in x0: fallback applied
+  kSuccess = 0,       ///< QP solved, iterate updated
+  kQpFailure = 1,     ///< QP infeasible or failed: fallback applied
+  kNanDetected = 2,   ///< NaN/Inf in the linearisation or the step: fallback applied
+  kInvalidInput = 3,  ///< NaN/Inf in x0: fallback applied
 };
 constexpr std::string_view ToString(RtiStatus s) {
   switch (s) {
-    case RtiStatus::kSuccess: return "success";
-    case RtiStatus::kQpFailure: return "qp_failure";
-    case RtiStatus::kNanDetected: return "nan_detected";
-    case RtiStatus::kInvalidInput: return "invalid_input";
+    case RtiStatus::kSuccess:
+      return "success";
+    case RtiStatus::kQpFailure:
+      return "qp_failure";
+    case RtiStatus::kNanDetected:
+      return "nan_detected";
+    case RtiStatus::kInvalidInput:
+      return "invalid_input";
   }
   return "?";
 }
@@ -97,15 +106,15 @@ constexpr std::string_view ToString(RtiStatus s) {
 struct RtiStats {
   RtiStatus status = RtiStatus::kSuccess;
   qp::QpStatus qp_status = qp::QpStatus::kOptimal;
-  int sqp_iterations = 0;   ///< SQP iterations in the last call
-  int qp_iterations = 0;    ///< active-set changes, summed over the call's QPs
+  int sqp_iterations = 0;           ///< SQP iterations in the last call
+  int qp_iterations = 0;            ///< active-set changes, summed over the call's QPs
   bool unconstrained_step = false;  ///< the last feedback took the unconstrained Riccati step
-  bool fallback = false;    ///< the shifted previous solution was applied
-  long fallback_count = 0;  ///< fallbacks since construction
-  double kkt = -1.0;        ///< KKT value when computed (else -1)
-  double time_prepare = 0;  ///< [s] linearisation + condensing of the last iteration
-  double time_feedback = 0; ///< [s] from x0 to u0 of the last iteration
-  double time_total = 0;    ///< [s] whole call
+  bool fallback = false;            ///< the shifted previous solution was applied
+  long fallback_count = 0;          ///< fallbacks since construction
+  double kkt = -1.0;                ///< KKT value when computed (else -1)
+  double time_prepare = 0;          ///< [s] linearisation + condensing of the last iteration
+  double time_feedback = 0;         ///< [s] from x0 to u0 of the last iteration
+  double time_total = 0;            ///< [s] whole call
 };
 
 }  // namespace fnmpc::rti

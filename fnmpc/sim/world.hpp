@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "fnmpc/core/sensors.hpp"
+#include "fnmpc/core/serialize.hpp"
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/model/vehicle_params.hpp"
 #include "fnmpc/sim/downwash.hpp"
@@ -70,6 +71,14 @@ struct DiscreteGust {
   double start = 0.0;             ///< [s]
   double duration = 1.0;          ///< [s], > 0
   Vec3 amplitude = Vec3::Zero();  ///< peak velocity, world frame [m/s]
+
+  /// Its keys (an item of the scenario's `reality.wind.discrete_gusts`).
+  template <class Archive>
+  void Serialize(Archive* a) {
+    a->Visit("time", &start, NonNegative().Required(), "[s] start, before the scenario's duration");
+    a->Visit("duration", &duration, Positive(), "[s] length");
+    a->Visit("amplitude", &amplitude, Finite(), "[m/s] peak velocity [x, y, z], world frame");
+  }
 };
 
 /// Constant wind plus gusts: the gust is a first-order Gauss-Markov (Ornstein-Uhlenbeck)
@@ -84,6 +93,18 @@ struct WindSettings {
   bool turbulence = false;          ///< Dryden turbulence on
   DrydenSettings dryden;            ///< its intensities, scale lengths and airspeed
   std::vector<DiscreteGust> discrete_gusts;
+
+  /// The keys of the scenario's `reality.wind` that map onto these fields (the switches
+  /// `enabled` and `turbulence` follow from them; the turbulence block is the scenario's own).
+  template <class Archive>
+  void Serialize(Archive* a) {
+    a->Visit("velocity", &velocity, Finite(), "[m/s] constant wind [x, y, z], world frame");
+    a->Visit("gusts.std", &gust_std, NonNegative(),
+             "[m/s] Gauss–Markov gusts per axis: stationary standard deviation (0: off)");
+    a->Visit("gusts.time_constant", &gust_time_constant, Positive(), "[s] their correlation time");
+    a->VisitList("discrete_gusts", &discrete_gusts,
+                 "1-cosine gusts: v(t) = amplitude (1 − cos(2π (t − time) / duration)) / 2");
+  }
 };
 
 /// Velocity [m/s] of the discrete gusts at time t [s] (sum over the gusts).
@@ -148,6 +169,31 @@ struct SensorRealitySettings {
   /// time constant, as an autopilot fusing external vision.
   bool autopilot_estimate = true;
   double estimate_time_constant = 0.5;  ///< [s]
+
+  /// The models' parameters with their keys (scenario block `reality.sensor_models`); the
+  /// switch `enabled` is the owner's (`reality.sensors`).
+  template <class Archive>
+  void Serialize(Archive* a) {
+    a->Visit("accel_bias", &accel_bias, NonNegative(), "[m/s²] initial IMU accelerometer bias sd");
+    a->Visit("gyro_bias", &gyro_bias, NonNegative(), "[rad/s] initial gyro bias sd");
+    a->Visit("accel_bias_walk", &accel_bias_walk, NonNegative(),
+             "[m/s² / √s] accelerometer bias random walk");
+    a->Visit("gyro_bias_walk", &gyro_bias_walk, NonNegative(),
+             "[rad/s / √s] gyro bias random walk");
+    a->Visit("latency_jitter", &latency_jitter, NonNegative(),
+             "[s] extra delivery delay, uniform in [0, jitter]");
+    a->Visit("burst_share", &burst_share, NonNegative().Below(0.5, ""),
+             "share of samples lost in bursts (Gilbert–Elliott chain per vehicle and sensor)");
+    a->Visit("burst_length", &burst_length, Positive(), "[s] mean burst length");
+    a->Visit("mocap_outlier_rate", &mocap_outlier_rate, NonNegative().AtMost(1.0, ""),
+             "share of mocap samples with an outlier (marker swap)");
+    a->Visit("mocap_outlier_size", &mocap_outlier_size, NonNegative(),
+             "[m] outlier position error");
+    a->Visit("autopilot_estimate", &autopilot_estimate, AnyValue(),
+             "the autopilot's attitude loop on its own gyro-driven estimate; false: on the truth");
+    a->Visit("estimate_time_constant", &estimate_time_constant, Positive(),
+             "[s] that estimate's correction toward the external attitude");
+  }
 
   void Validate() const;
 };

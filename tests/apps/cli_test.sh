@@ -48,6 +48,37 @@ plotter_of() {
   return 1
 }
 
+# file_has PATTERN FILE DESCRIPTION: FILE holds a line matching PATTERN.
+file_has() {
+  grep -q -- "$1" "$2" || { echo "FAIL: $3"; fails=$((fails + 1)); }
+}
+# absent PATH DESCRIPTION: PATH does not exist.
+absent() {
+  [[ -e $1 ]] && { echo "FAIL: $2"; fails=$((fails + 1)); }
+  return 0
+}
+# exits_with PID CODE DESCRIPTION: waits for the background job PID, checks its exit code.
+exits_with() {
+  wait "$1"
+  local rc=$?
+  if [[ $rc -ne $2 ]]; then
+    echo "FAIL: $3: exit $rc, expected $2"; cat "$tmp/err"; fails=$((fails + 1))
+  else
+    echo "ok: $3 exit $2"
+  fi
+}
+# plotter_started PID: waits up to 60 s for fnmpc PID's sysid plotter and prints its PID;
+# fails when fnmpc ends first or no plotter appears.
+plotter_started() {
+  local plotter
+  for _ in $(seq 1 1200); do
+    plotter=$(plotter_of "$1") && { echo "$plotter"; return 0; }
+    kill -0 "$1" 2>/dev/null || return 1
+    sleep 0.05
+  done
+  return 1
+}
+
 tri=$src/config/scenarios/triangle.yaml
 # The triangle with its vehicle and sensors paths made absolute, to be edited in $tmp.
 sed -e "s#\.\./vehicles/#$src/config/vehicles/#" -e "s#\.\./sensors/#$src/config/sensors/#" \
@@ -60,7 +91,7 @@ for d in 0 -5 nan inf 200; do
   expect "1|2" "--duration $d refused" -- "$fnmpc" run "$tri" --duration "$d" -o "$tmp/d"
   stderr_has "duration" "--duration $d names the flag"
 done
-[[ -e "$tmp/d" ]] && { echo "FAIL: a refused run created its folder"; fails=$((fails + 1)); }
+absent "$tmp/d" "a refused run created its folder"
 
 # ---- Compensation levels (issue #17): the planned ones are refused as not implemented; the
 # level is recorded in summary.json at the top and per run.
@@ -115,13 +146,13 @@ if grep -q Traceback "$tmp/err"; then echo "FAIL: report printed a traceback"; f
 # ---- sysid synth keeps an existing campaign (item 10).
 mkdir -p "$tmp/campaign" && echo "name: mine" >"$tmp/campaign/campaign.yaml"
 expect 1 "sysid synth refuses to overwrite a campaign" -- "$fnmpc" sysid synth "$tmp/campaign"
-grep -q "name: mine" "$tmp/campaign/campaign.yaml" || { echo "FAIL: campaign overwritten"; fails=$((fails + 1)); }
+file_has "name: mine" "$tmp/campaign/campaign.yaml" "campaign overwritten"
 
 # ---- A run that leaves its envelope exits 3 naming vehicle and reason (item 1).
 sed 's/^metrics:/envelope: {max_altitude: 0.5}\nmetrics:/' "$tmp/tri.yaml" >"$tmp/env.yaml"
 expect 3 "run leaving its envelope exits 3" -- "$fnmpc" run "$tmp/env.yaml" --duration 20 -q -o "$tmp/env"
 stderr_has "vehicle leader: left the flight envelope" "failure names vehicle and reason"
-grep -q '"complete": true' "$tmp/env/summary.json" || { echo "FAIL: summary not complete"; fails=$((fails + 1)); }
+file_has '"complete": true' "$tmp/env/summary.json" "summary not complete"
 
 # ---- MuJoCo instability (item 2): a physically absurd but valid gust (1e8 m/s at 4 s; the
 # drag of such a wind accelerates a vehicle beyond MuJoCo's 1e10 limit within a step, so
@@ -140,9 +171,9 @@ cd - >/dev/null || exit 1
 stderr_has "MuJoCo instability at t = 4" "instability message gives the time"
 stderr_has "vehicle 0 position (" "instability message gives the state"
 stderr_has "fnmpc run: warning: .*beyond the relative sensor's max_range" "unreachable neighbour warned"
-grep -q "beyond the relative sensor's max_range" "$tmp/gust/summary.json" || { echo "FAIL: warning not recorded in summary.json"; fails=$((fails + 1)); }
-grep -q '"complete": false' "$tmp/gust/summary.json" || { echo "FAIL: unstable run not marked incomplete"; fails=$((fails + 1)); }
-grep -q '"error": "\[World\] MuJoCo instability' "$tmp/gust/run-01/summary.json" || { echo "FAIL: run summary lacks the error"; fails=$((fails + 1)); }
+file_has "beyond the relative sensor's max_range" "$tmp/gust/summary.json" "warning not recorded in summary.json"
+file_has '"complete": false' "$tmp/gust/summary.json" "unstable run not marked incomplete"
+file_has '"error": "\[World\] MuJoCo instability' "$tmp/gust/run-01/summary.json" "run summary lacks the error"
 # The leader's CSV ends at the instability (no rows from a reset world after it).
 last_t=$(tail -1 "$tmp/gust/run-01/leader.csv" | cut -d, -f1)
 awk -v t="$last_t" 'BEGIN { exit !(t >= 3.9 && t <= 4.1) }' || { echo "FAIL: leader.csv ends at t = $last_t, expected about 4"; fails=$((fails + 1)); }
@@ -158,17 +189,11 @@ echo '{}' >"$tmp/int/summary.json"
 pid=$!
 sleep 5
 kill -INT $pid
-wait $pid
-rc=$?
-if [[ $rc -ne 130 ]]; then
-  echo "FAIL: SIGINT exit $rc, expected 130"; cat "$tmp/err"; fails=$((fails + 1))
-else
-  echo "ok: SIGINT exit 130"
-fi
-[[ -e "$tmp/int/ghost.csv" ]] && { echo "FAIL: --overwrite kept a stale file"; fails=$((fails + 1)); }
-grep -q '"complete": false' "$tmp/int/summary.json" || { echo "FAIL: interrupted summary not marked"; fails=$((fails + 1)); }
+exits_with $pid 130 "SIGINT"
+absent "$tmp/int/ghost.csv" "--overwrite kept a stale file"
+file_has '"complete": false' "$tmp/int/summary.json" "interrupted summary not marked"
 last=$(ls -d "$tmp"/int/run-* 2>/dev/null | sort | tail -1)
-grep -q '"stopped": "interrupted"' "$last/summary.json" || { echo "FAIL: $last/summary.json not marked"; fails=$((fails + 1)); }
+file_has '"stopped": "interrupted"' "$last/summary.json" "$last/summary.json not marked"
 [[ -s "$last/leader.csv" ]] || { echo "FAIL: interrupted run lost its CSV"; fails=$((fails + 1)); }
 ls "$last" | grep -q '\.part$' && { echo "FAIL: .part files left"; fails=$((fails + 1)); }
 # SIGTERM likewise: exit 143, folder marked incomplete.
@@ -176,15 +201,9 @@ ls "$last" | grep -q '\.part$' && { echo "FAIL: .part files left"; fails=$((fail
 pid=$!
 sleep 3
 kill -TERM $pid
-wait $pid
-rc=$?
-if [[ $rc -ne 143 ]]; then
-  echo "FAIL: SIGTERM exit $rc, expected 143"; cat "$tmp/err"; fails=$((fails + 1))
-else
-  echo "ok: SIGTERM exit 143"
-fi
+exits_with $pid 143 "SIGTERM"
 stderr_has "interrupted (signal 15)" "SIGTERM stop says so"
-grep -q '"complete": false' "$tmp/term/summary.json" || { echo "FAIL: terminated summary not marked"; fails=$((fails + 1)); }
+file_has '"complete": false' "$tmp/term/summary.json" "terminated summary not marked"
 
 # ---- sysid and calibrate (items 9, 10): glog never prints "Logging before
 # InitGoogleLogging"; Ctrl-C during sysid's plotting stops the command with 130 and a message.
@@ -207,50 +226,26 @@ if "$fnmpc" sysid synth "$tmp/syn" >/dev/null 2>"$tmp/err"; then
   "$fnmpc" sysid "$tmp/syn/campaign.yaml" -o "$tmp/syn/v.yaml" >"$tmp/out" 2>"$tmp/err" &
   pid=$!
   set +m
-  plotter=""
-  for _ in $(seq 1 1200); do
-    plotter=$(plotter_of "$pid") && break
-    kill -0 "$pid" 2>/dev/null || break
-    sleep 0.05
-  done
-  if [[ -z $plotter ]]; then
+  if ! plotter=$(plotter_started "$pid"); then
     echo "FAIL: the sysid plotter was never seen running"; fails=$((fails + 1)); wait $pid
   else
     kill -INT -- -"$pid"
-    wait $pid
-    rc=$?
-    if [[ $rc -ne 130 ]]; then
-      echo "FAIL: SIGINT during sysid plotting: exit $rc, expected 130"; cat "$tmp/err"; fails=$((fails + 1))
-    else
-      echo "ok: SIGINT during sysid plotting exit 130"
-    fi
+    exits_with $pid 130 "SIGINT during sysid plotting"
     stderr_has "sysid_report.py interrupted (signal 2)" "interrupted plotting says so"
-    [[ -e "$tmp/syn/v.yaml" ]] && { echo "FAIL: interrupted sysid wrote its vehicle file"; fails=$((fails + 1)); }
+    absent "$tmp/syn/v.yaml" "interrupted sysid wrote its vehicle file"
     ls -d "$tmp"/syn/v.yaml.report* >/dev/null 2>&1 && { echo "FAIL: interrupted sysid left its report folder"; fails=$((fails + 1)); }
   fi
   # SIGTERM to fnmpc alone (kill PID): passed on to the plotter, exit 143 with a message.
   "$fnmpc" sysid "$tmp/syn/campaign.yaml" -o "$tmp/syn/v.yaml" >"$tmp/out" 2>"$tmp/err" &
   pid=$!
-  plotter=""
-  for _ in $(seq 1 1200); do
-    plotter=$(plotter_of "$pid") && break
-    kill -0 "$pid" 2>/dev/null || break
-    sleep 0.05
-  done
-  if [[ -z $plotter ]]; then
+  if ! plotter=$(plotter_started "$pid"); then
     echo "FAIL: the sysid plotter was never seen running (SIGTERM case)"; fails=$((fails + 1)); wait $pid
   else
     kill -TERM "$pid"
-    wait $pid
-    rc=$?
-    if [[ $rc -ne 143 ]]; then
-      echo "FAIL: SIGTERM during sysid plotting: exit $rc, expected 143"; cat "$tmp/err"; fails=$((fails + 1))
-    else
-      echo "ok: SIGTERM during sysid plotting exit 143"
-    fi
+    exits_with $pid 143 "SIGTERM during sysid plotting"
     stderr_has "sysid_report.py interrupted (signal 15)" "terminated plotting says so"
     kill -0 "$plotter" 2>/dev/null && { echo "FAIL: the plotter outlived fnmpc"; kill "$plotter"; fails=$((fails + 1)); }
-    [[ -e "$tmp/syn/v.yaml" ]] && { echo "FAIL: terminated sysid wrote its vehicle file"; fails=$((fails + 1)); }
+    absent "$tmp/syn/v.yaml" "terminated sysid wrote its vehicle file"
   fi
 else
   echo "FAIL: sysid synth failed"; sed 's/^/  stderr: /' "$tmp/err" | tail -5; fails=$((fails + 1))

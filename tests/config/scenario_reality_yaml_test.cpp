@@ -74,17 +74,20 @@ TEST(ScenarioRealityYamlTest, EveryKeyMapped) {
   EXPECT_EQ(r.sensor_models.burst_share, 0.02);
   EXPECT_EQ(r.sensor_models.burst_length, 0.3);
   EXPECT_EQ(r.sensor_models.mocap_outlier_rate, 0.01);
-  EXPECT_EQ(r.sensor_models.autopilot_estimate, 0);
+  EXPECT_FALSE(r.sensor_models.autopilot_estimate);
   EXPECT_EQ(r.plant.mass, 0.05);
   EXPECT_EQ(r.plant.inertia, 0.2);
   EXPECT_EQ(r.plant.voltage_reference, 14.0);
   EXPECT_NEAR(r.plant.attitude_bias_max, 3.0 * M_PI / 180.0, 1e-15);
-  EXPECT_EQ(r.wind, Vec3(1.0, 2.0, 0.0));
-  EXPECT_EQ(r.gust_std, 0.3);
-  EXPECT_EQ(r.turbulence_w20, 5.0);
-  EXPECT_EQ(r.turbulence_height, 10.0);
-  ASSERT_EQ(r.gusts.size(), 1u);
-  EXPECT_EQ(r.gusts[0].amplitude, Vec3(0.0, 1.0, 0.0));
+  EXPECT_EQ(r.wind.velocity, Vec3(1.0, 2.0, 0.0));
+  EXPECT_EQ(r.wind.gust_std, 0.3);
+  EXPECT_EQ(r.wind.gust_time_constant, 1.5);
+  EXPECT_EQ(r.turbulence.w20, 5.0);
+  EXPECT_EQ(r.turbulence.height, 10.0);
+  ASSERT_EQ(r.wind.discrete_gusts.size(), 1u);
+  EXPECT_EQ(r.wind.discrete_gusts[0].start, 20.0);
+  EXPECT_EQ(r.wind.discrete_gusts[0].duration, 2.0);
+  EXPECT_EQ(r.wind.discrete_gusts[0].amplitude, Vec3(0.0, 1.0, 0.0));
 }
 
 TEST(ScenarioRealityYamlTest, BadValuesNameFileLineAndKey) {

@@ -5,11 +5,13 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
 
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/config/sensors_yaml.hpp"
 #include "fnmpc/config/settings_doc.hpp"
 #include "scenario_text.hpp"
 
@@ -29,31 +31,56 @@ bool Has(const std::vector<std::string>& v, const std::string& line) {
   return std::find(v.begin(), v.end(), line) != v.end();
 }
 
-// The shipped reference: no key documented that is not defined, none defined that is not
-// documented, and every row as generated. FNMPC_WRITE_SETTINGS_DOC=1 rewrites the table.
-TEST(ScenarioSettingsDocTest, DocsScenariosMdMatchesTheDefinitions) {
-  const std::string md = ReadText(kDocPath);
-  ASSERT_FALSE(md.empty()) << kDocPath;
-  const std::vector<SettingDoc> defined = ScenarioSettingsDocs();
-  const std::vector<std::string> drift = SettingsDocDrift(md, defined);
-  if (!drift.empty() && std::getenv("FNMPC_WRITE_SETTINGS_DOC") != nullptr) {
-    std::ofstream(kDocPath) << WithSettingsTable(md, defined);
+/// Sets every key of `fields` (dotted) in `root` to its documented default, except the keys
+/// `skip` accepts.
+template <class Skip>
+void SetDefaults(const std::vector<SettingDoc>& fields, const Skip& skip, YAML::Node root) {
+  for (const SettingDoc& f : fields) {
+    if (skip(f)) continue;
+    std::vector<std::string> path;
+    std::stringstream ks(f.key);
+    for (std::string part; std::getline(ks, part, '.');) path.push_back(part);
+    YAML::Node n = root;
+    for (std::size_t k = 0; k + 1 < path.size(); ++k) {
+      if (!n[path[k]]) n[path[k]] = YAML::Node(YAML::NodeType::Map);
+      n.reset(n[path[k]]);
+    }
+    n[path.back()] = YAML::Load(f.default_value);
   }
-  std::string all;
-  for (const std::string& d : drift) all += d + "\n";
-  EXPECT_TRUE(drift.empty()) << all << "expected table:\n"
-                             << SettingsTable(defined)
-                             << "(FNMPC_WRITE_SETTINGS_DOC=1 ctest -R ScenarioSettingsDoc "
-                                "rewrites it)";
+}
+
+// The shipped reference: for each generated table (the scenario's settings, the `reality:`
+// block, the sensors file) no key documented that is not defined, none defined that is not
+// documented, and every row as generated. FNMPC_WRITE_SETTINGS_DOC=1 rewrites the tables.
+TEST(ScenarioSettingsDocTest, DocsScenariosMdMatchesTheDefinitions) {
+  std::string md = ReadText(kDocPath);
+  ASSERT_FALSE(md.empty()) << kDocPath;
+  const std::vector<std::pair<std::string, std::vector<SettingDoc>>> tables = {
+      {"settings", ScenarioSettingsDocs()},
+      {"reality", RealitySettingsDocs()},
+      {"sensors file", SensorsSettingsDocs()}};
+  for (const auto& [table, defined] : tables) {
+    const std::vector<std::string> drift = SettingsDocDrift(md, defined, table);
+    if (!drift.empty() && std::getenv("FNMPC_WRITE_SETTINGS_DOC") != nullptr) {
+      md = WithSettingsTable(md, defined, table);
+      std::ofstream(kDocPath) << md;
+    }
+    std::string all;
+    for (const std::string& d : drift) all += d + "\n";
+    EXPECT_TRUE(drift.empty()) << all << "expected " << table << " table:\n"
+                               << SettingsTable(defined)
+                               << "(FNMPC_WRITE_SETTINGS_DOC=1 ctest -R ScenarioSettingsDoc "
+                                  "rewrites it)";
+  }
 }
 
 // The check fails both ways: a documented key that no struct defines, a defined key that the
 // table lacks, and a changed default.
 TEST(ScenarioSettingsDocTest, DriftIsReportedBothWays) {
   const std::vector<SettingDoc> defined = ScenarioSettingsDocs();
-  const std::string begin = std::string(kSettingsBegin) + "\n";
+  const std::string begin = TableBegin("settings") + "\n";
   const std::string good =
-      "intro\n" + begin + SettingsTable(defined) + std::string(kSettingsEnd) + "\nrest\n";
+      "intro\n" + begin + SettingsTable(defined) + TableEnd("settings") + "\nrest\n";
   EXPECT_TRUE(SettingsDocDrift(good, defined).empty());
 
   std::string bad = good;
@@ -81,18 +108,8 @@ TEST(ScenarioSettingsDocTest, DriftIsReportedBothWays) {
 // documented default parses (an unknown key would be an error) to the same settings.
 TEST(ScenarioSettingsDocTest, EveryDefinedKeyIsReadFromYaml) {
   YAML::Node root = YAML::Load(test::ShippedScenarioText("triangle.yaml"));
-  const std::vector<SettingDoc> defined = ScenarioSettingsDocs();
-  for (const SettingDoc& f : defined) {
-    std::vector<std::string> path;
-    std::stringstream ks(f.key);
-    for (std::string part; std::getline(ks, part, '.');) path.push_back(part);
-    YAML::Node n = root;
-    for (std::size_t k = 0; k + 1 < path.size(); ++k) {
-      if (!n[path[k]]) n[path[k]] = YAML::Node(YAML::NodeType::Map);
-      n.reset(n[path[k]]);
-    }
-    n[path.back()] = YAML::Load(f.default_value);
-  }
+  SetDefaults(
+      ScenarioSettingsDocs(), [](const SettingDoc&) { return false; }, root);
   // cpu_budget defaults to the sample time; the weight-dependent thrust bounds and the
   // scenario's own landing time are the file's.
   root["controller"]["bounds"]["thrust"] = YAML::Load("[5, 25]");
@@ -105,6 +122,72 @@ TEST(ScenarioSettingsDocTest, EveryDefinedKeyIsReadFromYaml) {
   EXPECT_EQ(s.rti.qp.max_iterations, 500);
   EXPECT_TRUE(s.rti.unconstrained_shortcut);
   EXPECT_DOUBLE_EQ(s.follower_weights.collision, 1000.0);
+}
+
+// Every key of the `reality:` table is read: each set to its documented default parses to
+// the defaults (the turbulence block's two forms exclude each other: checked one by one).
+TEST(ScenarioSettingsDocTest, EveryRealityKeyIsReadFromYaml) {
+  YAML::Node root = YAML::Load(test::ShippedScenarioText("triangle.yaml"));
+  root["reality"] = YAML::Node(YAML::NodeType::Map);
+  SetDefaults(
+      RealitySettingsDocs(),
+      [](const SettingDoc& f) {
+        return f.default_value == "none" || f.key.find("[]") != std::string::npos ||
+               f.key.rfind("reality.wind.turbulence.", 0) == 0;
+      },
+      root);
+  std::stringstream out;
+  out << root;
+  const ScenarioReality r = ParseScenario(YamlMap::LoadString(out.str(), "r.yaml")).reality;
+  const ScenarioReality d;
+  EXPECT_FALSE(r.enabled);  // its documented default, given explicitly
+  EXPECT_TRUE(r.rotor_aerodynamics && r.wake && r.sensors);
+  EXPECT_EQ(r.sensor_models.gyro_bias_walk, d.sensor_models.gyro_bias_walk);
+  EXPECT_EQ(r.sensor_models.estimate_time_constant, d.sensor_models.estimate_time_constant);
+  EXPECT_EQ(r.plant.voltage_dependence, d.plant.voltage_dependence);
+  EXPECT_NEAR(r.plant.attitude_bias_max, d.plant.attitude_bias_max, 1e-15);
+  EXPECT_EQ(r.wind.gust_time_constant, d.wind.gust_time_constant);
+  EXPECT_EQ(r.wind.velocity, d.wind.velocity);
+
+  for (const char* turbulence : {"{w20: 3, height: 20, airspeed: 2}",
+                                 "{sigma: [1, 1, 0.5], length_scale: [100, 100, 20], "
+                                 "airspeed: 2}"}) {
+    root["reality"]["wind"]["turbulence"] = YAML::Load(turbulence);
+    std::stringstream t;
+    t << root;
+    const ScenarioTurbulence b =
+        ParseScenario(YamlMap::LoadString(t.str(), "t.yaml")).reality.turbulence;
+    EXPECT_TRUE(b.enabled()) << turbulence;
+    EXPECT_EQ(b.airspeed, 2.0);
+    EXPECT_TRUE(std::isfinite(b.w20) ? b.height == 20.0 : b.length_scale.z() == 20.0);
+  }
+}
+
+// Every key of the sensors-file table is read: each set to its documented default parses to
+// SensorsConfig's defaults (the table prints 6 digits).
+TEST(ScenarioSettingsDocTest, EverySensorsKeyIsReadFromYaml) {
+  YAML::Node root(YAML::NodeType::Map);
+  SetDefaults(
+      SensorsSettingsDocs(), [](const SettingDoc&) { return false; }, root);
+  std::stringstream out;
+  out << root;
+  const SensorsConfig c = ParseSensors(YamlMap::LoadString(out.str(), "s.yaml"));
+  const SensorsConfig d;
+  for (auto [a, b] :
+       {std::pair{&c.mocap, &d.mocap}, std::pair{&c.imu, &d.imu},
+        std::pair{&c.optical_flow, &d.optical_flow}, std::pair{&c.compass, &d.compass},
+        std::pair{&c.battery, &d.battery}, std::pair{&c.relative, &d.relative}}) {
+    EXPECT_EQ(a->enabled, b->enabled);
+    EXPECT_EQ(a->rate_hz, b->rate_hz);
+    EXPECT_EQ(a->latency_s, b->latency_s);
+    EXPECT_TRUE(a->noise.isApprox(b->noise, 1e-6));
+    EXPECT_TRUE(a->noise2.isApprox(b->noise2, 1e-6) || b->noise2.isZero());
+  }
+  EXPECT_NEAR(c.relative.field_of_view, d.relative.field_of_view, 1e-5);
+  EXPECT_EQ(c.relative.max_range, d.relative.max_range);
+  EXPECT_EQ(c.relative.range_noise_growth, d.relative.range_noise_growth);
+  // A misspelt sensor key is still an error naming it.
+  EXPECT_THROW(ParseSensors(YamlMap::LoadString("imu: {accel_nosie: 1}\n", "s.yaml")), ConfigError);
 }
 
 // The settings the scenario could not set before issue #16: QP settings, soft-bound weights

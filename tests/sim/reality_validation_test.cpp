@@ -6,11 +6,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <fstream>
-#include <sstream>
 #include <string>
 #include <vector>
 
+#include "fnmpc/config/csv_reader.hpp"
 #include "fnmpc/sim/downwash.hpp"
 #include "fnmpc/sim/rotor_aero.hpp"
 #include "fnmpc/sim/wake.hpp"
@@ -22,26 +21,14 @@ struct Point {
   double x, y;
 };
 
-/// Two-column CSV with '#' comments and one header line.
+/// The (J, C_T) rows of a reference table in tests/sim/data (the project's CSV reader; the
+/// source is quoted in '#' lines above the header).
 std::vector<Point> ReadTable(const std::string& name) {
-  std::ifstream f(std::string(FNMPC_SOURCE_DIR) + "/tests/sim/data/" + name);
-  EXPECT_TRUE(f.good()) << name;
+  const config::CsvTable t =
+      config::ReadCsv(std::string(FNMPC_SOURCE_DIR) + "/tests/sim/data/" + name, {"J", "CT"}, "J",
+                      /*hash_comments=*/true);
   std::vector<Point> out;
-  std::string line;
-  bool header = true;
-  while (std::getline(f, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    if (header) {
-      header = false;
-      continue;
-    }
-    std::istringstream s(line);
-    Point p{};
-    char comma = 0;
-    s >> p.x >> comma >> p.y;
-    EXPECT_TRUE(s && comma == ',') << name << ": " << line;
-    out.push_back(p);
-  }
+  for (std::size_t r = 0; r < t.rows(); ++r) out.push_back({t.Column("J")[r], t.Column("CT")[r]});
   return out;
 }
 
