@@ -22,6 +22,10 @@ foreach(layer IN LISTS FNMPC_INSTALLED_LAYERS)
           DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/fnmpc/${layer}
           FILES_MATCHING PATTERN "*.hpp")
 endforeach()
+# The benchmark problems (fnmpc/rti/benchmark_ocps.hpp, installed with the rti headers).
+if(TARGET fnmpc_rti_benchmark)
+  list(APPEND fnmpc_install_targets fnmpc_rti_benchmark)
+endif()
 install(TARGETS ${fnmpc_install_targets} EXPORT fnmpcTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})

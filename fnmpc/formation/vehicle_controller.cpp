@@ -9,6 +9,7 @@
 #include "fnmpc/core/stopwatch.hpp"
 #include "fnmpc/formation/throttle_map.hpp"
 #include "fnmpc/ocp/problem_extensions.hpp"
+#include "fnmpc/rti/quadrotor_ocp.hpp"
 
 namespace fnmpc::formation {
 
@@ -219,9 +220,7 @@ struct HoverTarget {
 
 template <class Solver>
 void InputBounds(const ControllerConfig& c, Solver* s) {
-  const Vec3 lo(c.thrust_min, -c.max_attitude_ref, -c.max_attitude_ref);
-  const Vec3 hi(c.thrust_max, c.max_attitude_ref, c.max_attitude_ref);
-  for (int k = 0; k < s->horizon(); ++k) s->SetInputBounds(k, lo, hi);
+  rti::quadrotor::SetInputLimits(s, c.thrust_min, c.thrust_max, c.max_attitude_ref);
 }
 
 // Bounds of the leader's position z and velocity, of the follower's displacement and
@@ -237,22 +236,20 @@ class LeaderCore final : public NmpcCore {
         solver_(Problem(ocp::WithInputRate<Base>(
                     Base(ocp::LeaderProblem{model::AttitudeModelParams::From(c.params)},
                          c.safety.collision_radius))),
-                c.rti, rti::StateBoundLayout{{2, 3, 4, 5}, {true, true, true, true}}) {
+                c.rti, rti::quadrotor::LeaderLayout(/*altitude=*/true, /*soft=*/true)) {
     const NmpcWeights& wt = c.weights;
     w_.setZero();
-    w_.head<11>() << wt.position, wt.velocity, wt.attitude, wt.attitude, wt.thrust, wt.attitude_ref,
-        wt.attitude_ref;
+    w_.head<11>() = rti::quadrotor::LeaderWeights(wt);
     w_.segment<kObstacleSlots>(11).setConstant(wt.collision);
     w_.tail<3>() << wt.thrust_rate, wt.attitude_ref_rate, wt.attitude_ref_rate;
-    wn_.head<8>() = wt.terminal_factor * w_.head<8>();
+    wn_.head<8>() = rti::quadrotor::LeaderTerminalWeights(wt);
     wn_.tail<kObstacleSlots>().setConstant(wt.collision);
     solver_.SetWeights(w_, wn_);
     InputBounds(c, &solver_);
     Solver::X lb = Solver::X::Constant(-kInf), ub = Solver::X::Constant(kInf);
     lb[2] = c.safety.min_altitude;  // z of the CoM, the ground plane at z = 0
     ub[2] = c.safety.max_altitude;
-    lb.segment<3>(3).setConstant(-c.max_speed);
-    ub.segment<3>(3).setConstant(c.max_speed);
+    rti::quadrotor::SetSpeedBounds(3, c.max_speed, &lb, &ub);
     for (int k = 1; k <= solver_.horizon(); ++k) solver_.SetStateBounds(k, lb, ub);
     yref_.assign(solver_.horizon(), Solver::Y::Zero());
     params_.assign(solver_.horizon() + 1, Solver::P::Zero());
@@ -372,14 +369,10 @@ class FollowerCore final : public NmpcCore {
         solver_(Problem(ocp::WithInputRate<Base>(
                     Base(Reduced{model::AttitudeModelParams::From(c.params), c.frame},
                          c.safety.collision_radius))),
-                c.rti,
-                rti::StateBoundLayout{{0, 1, 2, 3, 4, 5}, {true, true, true, true, true, true}}) {
+                c.rti, rti::quadrotor::ReducedFollowerLayout(/*soft_velocity=*/true)) {
     const NmpcWeights& wt = c.weights;
     w_.setZero();
-    w_.segment<3>(0) = wt.position;
-    w_.segment<3>(3) = wt.velocity;
-    w_.segment<5>(kNyR - 5) << wt.attitude, wt.attitude, wt.thrust, wt.attitude_ref,
-        wt.attitude_ref;
+    w_.head<kNyR>() = rti::quadrotor::FollowerWeights<1>(wt);
     w_.segment<kObstacleSlots>(kNyR).setConstant(wt.collision);
     w_.tail<3>() << wt.thrust_rate, wt.attitude_ref_rate, wt.attitude_ref_rate;
     TerminalWeights(w_, &wn_);
@@ -488,8 +481,7 @@ class FollowerCore final : public NmpcCore {
   X Stage(const NmpcInput& in) {
     const double ts = c_.rti.sample_time;
     X lb = X::Constant(-kInf), ub = X::Constant(kInf);
-    lb.segment<3>(3).setConstant(-c_.max_speed);
-    ub.segment<3>(3).setConstant(c_.max_speed);
+    rti::quadrotor::SetSpeedBounds(3, c_.max_speed, &lb, &ub);
     const Vec3& b = c_.relative_position_bound;
     const bool height_known = std::isfinite(in.height);
     Vec3 rel_mean = Vec3::Zero(), vel_mean = Vec3::Zero();
@@ -513,9 +505,7 @@ class FollowerCore final : public NmpcCore {
       Vec3 lo = Vec3::Constant(-kInf), hi = Vec3::Constant(kInf);
       for (int j = 0; j < nn_; ++j) {
         if (!active_[j]) continue;
-        const Vec3 cj = rel_[j] + (k * ts) * vel_[j];
-        lo = lo.cwiseMax(cj - b);
-        hi = hi.cwiseMin(cj + b);
+        rti::quadrotor::IntersectRelativeBound(rel_[j] + (k * ts) * vel_[j], b, &lo, &hi);
       }
       for (int o = 0; o < kObstacleSlots; ++o) {
         if (o >= in.obstacles) {

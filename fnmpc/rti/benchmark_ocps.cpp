@@ -6,6 +6,7 @@
 
 #include "fnmpc/core/stopwatch.hpp"
 #include "fnmpc/model/rk4.hpp"
+#include "fnmpc/rti/quadrotor_ocp.hpp"
 
 namespace fnmpc::rti::benchmark {
 
@@ -71,13 +72,17 @@ void ReferenceTrajectory::Sample(double t, Vec3* p, Vec3* v) const {
 
 namespace {
 
+// The spec's weights and bounds: the defaults of ocp::NmpcWeights (stage 20, 20, 30, 2, 2, 2,
+// 1, 1, 0.05, 5, 5; terminal 5 times) and of the controllers' bounds (speed 2 m/s per axis,
+// T in [5, 25] N, attitude references within 0.35 rad).
+const ocp::NmpcWeights kSpecWeights;
 constexpr double kMaxVel = 2.0;
 const Vec3 kInputLower(5.0, -0.35, -0.35);
 const Vec3 kInputUpper(25.0, 0.35, 0.35);
 
 template <class Solver>
 void SetInputBounds(Solver* solver) {
-  for (int k = 0; k < solver->horizon(); ++k) solver->SetInputBounds(k, kInputLower, kInputUpper);
+  quadrotor::SetInputLimits(solver, kInputLower[0], kInputUpper[0], kInputUpper[1]);
 }
 
 Vec3 HoverInput() { return {SpecVehicle().mass * kGravity, 0, 0}; }
@@ -85,17 +90,13 @@ Vec3 HoverInput() { return {SpecVehicle().mass * kGravity, 0, 0}; }
 }  // namespace
 
 LeaderSolver MakeLeaderSolver(const Vec<9>& x0, const RtiSettings& settings) {
-  StateBoundLayout layout{{3, 4, 5}, {false, false, false}};
-  LeaderSolver solver(ocp::LeaderProblem{SpecVehicle()}, settings, layout);
-  Vec<11> w;
-  w << 20, 20, 30, 2, 2, 2, 1, 1, 0.05, 5, 5;
-  Vec<8> wn;
-  wn << 100, 100, 150, 10, 10, 10, 5, 5;
-  solver.SetWeights(w, wn);
+  LeaderSolver solver(ocp::LeaderProblem{SpecVehicle()}, settings,
+                      quadrotor::LeaderLayout(/*altitude=*/false, /*soft=*/false));
+  solver.SetWeights(quadrotor::LeaderWeights(kSpecWeights),
+                    quadrotor::LeaderTerminalWeights(kSpecWeights));
   SetInputBounds(&solver);
   Vec<9> lb = Vec<9>::Constant(-kInf), ub = Vec<9>::Constant(kInf);
-  lb.segment<3>(3).setConstant(-kMaxVel);
-  ub.segment<3>(3).setConstant(kMaxVel);
+  quadrotor::SetSpeedBounds(3, kMaxVel, &lb, &ub);
   for (int k = 1; k <= solver.horizon(); ++k) solver.SetStateBounds(k, lb, ub);
   solver.InitializeGuess(x0, HoverInput());
   return solver;
@@ -130,15 +131,10 @@ std::array<Vec3, Nn> DesiredOffsets() {
 namespace {
 
 // Weights of the spec: neighbours 1 and 2 weighted, the others (F6's static points) not.
-template <int Nn>
-void FollowerWeights(Vec<6 * Nn + 5>* w, Vec<6 * Nn + 2>* wn) {
-  w->setZero();
-  for (int j = 0; j < 2; ++j) {
-    w->template segment<3>(3 * j) = Vec3(20, 20, 30);
-    w->template segment<3>(3 * Nn + 3 * j) = Vec3(2, 2, 2);
-  }
-  w->template tail<5>() << 1, 1, 0.05, 5, 5;
-  *wn = 5.0 * w->template head<6 * Nn + 2>();
+template <int Nn, class Solver>
+void SetFollowerWeights(Solver* solver) {
+  solver->SetWeights(quadrotor::FollowerWeights<Nn>(kSpecWeights, 2),
+                     quadrotor::FollowerTerminalWeights<Nn>(kSpecWeights, 2));
 }
 
 template <int Nn, class Solver>
@@ -172,10 +168,9 @@ FollowerSolver<Nn> MakeFollowerSolver(const Vec<6>& own,
                                       const RtiSettings& settings, ocp::TargetFrame frame) {
   using Problem = ocp::FollowerProblem<Nn>;
   constexpr int nx = Problem::kNx;
-  StateBoundLayout layout{{0, 1, 2}, {false, false, false}};
+  StateBoundLayout layout{{0, 1, 2}, {false, false, false}};  // own velocity, hard
   Vec<nx> lb = Vec<nx>::Constant(-kInf), ub = Vec<nx>::Constant(kInf);
-  lb.template head<3>().setConstant(-kMaxVel);
-  ub.template head<3>().setConstant(kMaxVel);
+  quadrotor::SetSpeedBounds(0, kMaxVel, &lb, &ub);
   for (int j = 0; j < Nn; ++j) {
     const int o = model::FollowerModel<Nn>::Neighbour(j);
     for (int i = 0; i < 3; ++i) {
@@ -186,10 +181,7 @@ FollowerSolver<Nn> MakeFollowerSolver(const Vec<6>& own,
     }
   }
   FollowerSolver<Nn> solver(Problem{SpecVehicle(), frame}, settings, layout);
-  Vec<6 * Nn + 5> w;
-  Vec<6 * Nn + 2> wn;
-  FollowerWeights<Nn>(&w, &wn);
-  solver.SetWeights(w, wn);
+  SetFollowerWeights<Nn>(&solver);
   SetInputBounds(&solver);
   for (int k = 1; k <= solver.horizon(); ++k) solver.SetStateBounds(k, lb, ub);
   FollowerReferences<Nn>(&solver);
@@ -206,17 +198,14 @@ Vec<9> SetReducedFollowerStage(ReducedFollowerSolver<Nn>* solver, const Vec<6>& 
   p[0] = 0.0;  // psi_ref
   for (int j = 0; j < Nn; ++j) p.template segment<3>(Problem::ParamVel(j)) = nb[j].vel;
   Vec<9> lb = Vec<9>::Constant(-kInf), ub = Vec<9>::Constant(kInf);
-  lb.segment<3>(3).setConstant(-kMaxVel);
-  ub.segment<3>(3).setConstant(kMaxVel);
+  quadrotor::SetSpeedBounds(3, kMaxVel, &lb, &ub);
   for (int k = 0; k <= solver->horizon(); ++k) {
     const double t = k * ts;
     Vec3 s_lo = Vec3::Constant(-kInf), s_hi = Vec3::Constant(kInf);
     for (int j = 0; j < Nn; ++j) {
       const Vec3 c = nb[j].rel_pos + t * nb[j].vel;  // constant-velocity prediction
       p.template segment<3>(Problem::ParamRelPos(j)) = c;
-      // -b <= c - s <= b  <=>  c - b <= s <= c + b, intersected over neighbours.
-      s_lo = s_lo.cwiseMax(c - kRelPosBound);
-      s_hi = s_hi.cwiseMin(c + kRelPosBound);
+      quadrotor::IntersectRelativeBound(c, kRelPosBound, &s_lo, &s_hi);
     }
     solver->SetParameters(k, p);
     if (k >= 1) {
@@ -236,12 +225,9 @@ ReducedFollowerSolver<Nn> MakeReducedFollowerSolver(
     const Vec<6>& own, const std::array<NeighbourState, Nn>& neighbours,
     const RtiSettings& settings, ocp::TargetFrame frame) {
   using Problem = ocp::ReducedFollowerProblem<Nn>;
-  StateBoundLayout layout{{0, 1, 2, 3, 4, 5}, {true, true, true, false, false, false}};
-  ReducedFollowerSolver<Nn> solver(Problem{SpecVehicle(), frame}, settings, layout);
-  Vec<6 * Nn + 5> w;
-  Vec<6 * Nn + 2> wn;
-  FollowerWeights<Nn>(&w, &wn);
-  solver.SetWeights(w, wn);
+  ReducedFollowerSolver<Nn> solver(Problem{SpecVehicle(), frame}, settings,
+                                   quadrotor::ReducedFollowerLayout(/*soft_velocity=*/false));
+  SetFollowerWeights<Nn>(&solver);
   SetInputBounds(&solver);
   FollowerReferences<Nn>(&solver);
   const Vec<9> x0 = SetReducedFollowerStage<Nn>(&solver, own, neighbours);
