@@ -13,19 +13,13 @@
 #include "fnmpc/config/scenario_yaml.hpp"
 #include "fnmpc/config/sensors_yaml.hpp"
 #include "fnmpc/config/settings_doc.hpp"
+#include "fnmpc/config/text_file.hpp"
 #include "scenario_text.hpp"
 
 namespace fnmpc::config {
 namespace {
 
 const std::string kDocPath = std::string(FNMPC_SOURCE_DIR) + "/docs/scenarios.md";
-
-std::string ReadText(const std::string& path) {
-  std::ifstream f(path);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
 
 bool Has(const std::vector<std::string>& v, const std::string& line) {
   return std::find(v.begin(), v.end(), line) != v.end();
@@ -53,7 +47,7 @@ void SetDefaults(const std::vector<SettingDoc>& fields, const Skip& skip, YAML::
 // block, the sensors file) no key documented that is not defined, none defined that is not
 // documented, and every row as generated. FNMPC_WRITE_SETTINGS_DOC=1 rewrites the tables.
 TEST(ScenarioSettingsDocTest, DocsScenariosMdMatchesTheDefinitions) {
-  std::string md = ReadText(kDocPath);
+  std::string md = ReadTextFile(kDocPath);
   ASSERT_FALSE(md.empty()) << kDocPath;
   const std::vector<std::pair<std::string, std::vector<SettingDoc>>> tables = {
       {"settings", ScenarioSettingsDocs()},
