@@ -14,6 +14,7 @@
 #include "fnmpc/config/sensors_yaml.hpp"
 #include "fnmpc/config/settings_doc.hpp"
 #include "fnmpc/config/text_file.hpp"
+#include "fnmpc/rti/rti_settings.hpp"
 #include "scenario_text.hpp"
 
 namespace fnmpc::config {
@@ -43,29 +44,43 @@ void SetDefaults(const std::vector<SettingDoc>& fields, const Skip& skip, YAML::
   }
 }
 
-// The shipped reference: for each generated table (the scenario's settings, the `reality:`
-// block, the sensors file) no key documented that is not defined, none defined that is not
-// documented, and every row as generated. FNMPC_WRITE_SETTINGS_DOC=1 rewrites the tables.
-TEST(ScenarioSettingsDocTest, DocsScenariosMdMatchesTheDefinitions) {
-  std::string md = ReadTextFile(kDocPath);
-  ASSERT_FALSE(md.empty()) << kDocPath;
-  const std::vector<std::pair<std::string, std::vector<SettingDoc>>> tables = {
-      {"settings", ScenarioSettingsDocs()},
-      {"reality", RealitySettingsDocs()},
-      {"sensors file", SensorsSettingsDocs()}};
+/// For each generated table of the markdown file `path`: no key documented that is not
+/// defined, none defined that is not documented, and every row as generated.
+/// FNMPC_WRITE_SETTINGS_DOC=1 rewrites the tables.
+void ExpectTablesMatch(const std::string& path,
+                       const std::vector<std::pair<std::string, std::vector<SettingDoc>>>& tables) {
+  std::string md = ReadTextFile(path);
+  ASSERT_FALSE(md.empty()) << path;
   for (const auto& [table, defined] : tables) {
     const std::vector<std::string> drift = SettingsDocDrift(md, defined, table);
     if (!drift.empty() && std::getenv("FNMPC_WRITE_SETTINGS_DOC") != nullptr) {
       md = WithSettingsTable(md, defined, table);
-      std::ofstream(kDocPath) << md;
+      std::ofstream(path) << md;
     }
     std::string all;
     for (const std::string& d : drift) all += d + "\n";
-    EXPECT_TRUE(drift.empty()) << all << "expected " << table << " table:\n"
+    EXPECT_TRUE(drift.empty()) << path << ": " << all << "expected " << table << " table:\n"
                                << SettingsTable(defined)
                                << "(FNMPC_WRITE_SETTINGS_DOC=1 ctest -R ScenarioSettingsDoc "
                                   "rewrites it)";
   }
+}
+
+// The shipped reference: the scenario's settings, the `reality:` block, the sensors file.
+TEST(ScenarioSettingsDocTest, DocsScenariosMdMatchesTheDefinitions) {
+  ExpectTablesMatch(kDocPath, {{"settings", ScenarioSettingsDocs()},
+                               {"reality", RealitySettingsDocs()},
+                               {"sensors file", SensorsSettingsDocs()}});
+}
+
+// docs/rti.md's table of the solver's own settings (rti::RtiSettings with its qp::QpSettings).
+TEST(ScenarioSettingsDocTest, DocsRtiMdMatchesRtiSettings) {
+  rti::RtiSettings defaults;
+  SettingsDocWriter writer;
+  writer.Read(&defaults);
+  ASSERT_FALSE(writer.fields().empty());
+  ExpectTablesMatch(std::string(FNMPC_SOURCE_DIR) + "/docs/rti.md",
+                    {{"rti settings", writer.fields()}});
 }
 
 // The check fails both ways: a documented key that no struct defines, a defined key that the
