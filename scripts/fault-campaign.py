@@ -3,7 +3,7 @@
 """Fault campaign: randomized fault runs of the triangle with `fnmpc run`, table per fault kind.
 
   /usr/bin/python3 scripts/fault-campaign.py [--fnmpc build/apps/fnmpc/fnmpc] [--runs 210]
-      [--seed 1] [--duration 30] [--out DIR] [--keep]
+      [--seed 1] [--duration 30] [--out DIR] [--keep] [--only 55 198]
 
 A seeded RNG (--seed) draws, per run, one fault kind (round robin over KINDS, so every kind
 gets the same share) and its parameters: vehicle, time inside the NMPC flight, dropout windows,
@@ -16,9 +16,13 @@ of its own, docs/failure.md: this script judges those runs by the checks below; 
 is a crash), no non-finite command (thrust, roll,
 pitch, yaw) in any CSV row of a vehicle whose controller is alive, and every vehicle either
 landed safely (summary.json `landed_safely`) or is the one the fault downed
-(`faults.downed_vehicles`: kill_controller and motors_off targets). It prints the markdown
+(`faults.downed_vehicles`: kill_controller and motors_off targets), and no vehicle that is not
+downed touched the ground in the NMPC phase (its true CoM within 1.5 cm of the resting height,
+the touchdown test of `fnmpc run`, in a CSV row of phase `nmpc`: a ground strike, which
+summary.json does not count as a touchdown; the speed is the true v_z of the row before). It prints the markdown
 table of docs/results.md ("Faults and safety", fault campaign) and exits 1 when a run failed
-a check.
+a check. `--only` flies the listed run numbers alone (0-based, as printed), with the faults and
+seeds they get in the whole campaign (every run is still drawn), to reproduce a failure.
 """
 import argparse
 import csv
@@ -39,6 +43,8 @@ KINDS = ["kill_controller", "motors_off", "sensor_dropouts", "outliers", "solver
          "mixed"]
 SENSORS = ["mocap", "imu", "optical_flow", "compass", "battery", "relative"]
 COMMAND_COLUMNS = ("cmd_thrust", "cmd_roll", "cmd_pitch", "cmd_yaw")
+REST_HEIGHT = 0.1  # m, sim::World::kRestHeight: CoM height of a vehicle resting on the ground
+CONTACT_MARGIN = 0.015  # m, fnmpc run's touchdown test (apps/fnmpc/run_loop.cpp)
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
@@ -78,14 +84,22 @@ def draw_faults(rng, kind, names, t0, t1):
 
 
 def csv_stats(run_dir):
-    out = {"nan_commands": 0, "zmax": 0.0, "dmax": 0.0}
+    """NaN commands, max height and distance, and per vehicle its first ground strike in the
+    NMPC phase as (time, true v_z of the row before) or None."""
+    out = {"nan_commands": 0, "zmax": 0.0, "dmax": 0.0, "strikes": {}}
     for path in sorted(glob.glob(os.path.join(run_dir, "*.csv"))):
         with open(path, newline="") as f:
             rows = list(csv.DictReader(f))
         if not rows:
             continue
+        name = os.path.splitext(os.path.basename(path))[0]
         x0, y0 = float(rows[0]["x"]), float(rows[0]["y"])
+        prev = None
         for r in rows:
+            if (r["phase"] == "nmpc" and name not in out["strikes"] and
+                    float(r["z"]) < REST_HEIGHT + CONTACT_MARGIN):
+                out["strikes"][name] = (float(r["t"]), float((prev or r)["vz"]))
+            prev = r
             out["zmax"] = max(out["zmax"], float(r["z"]))
             out["dmax"] = max(out["dmax"], math.hypot(float(r["x"]) - x0, float(r["y"]) - y0))
             if r["phase"] != "killed" and not all(math.isfinite(float(r[c]))
@@ -105,9 +119,13 @@ def main():
     ap.add_argument("--keep", action="store_true", help="keep the temporary folder")
     ap.add_argument("--reality", choices=("on", "off"),
                     help="fnmpc run --reality (default: the scenario's; the triangle's is on)")
+    ap.add_argument("--only", type=int, nargs="+", metavar="RUN",
+                    help="fly only these run numbers (0-based) of the campaign")
     a = ap.parse_args()
     if a.runs < 1:
         ap.error("--runs must be >= 1")
+    if a.only and not all(0 <= r < a.runs for r in a.only):
+        ap.error(f"--only: run numbers must be in 0..{a.runs - 1}")
     with open(a.scenario) as f:
         base = yaml.safe_load(f)
     sdir = os.path.dirname(os.path.abspath(a.scenario))
@@ -126,13 +144,16 @@ def main():
     stats = {k: {"runs": 0, "crashes": 0, "nan": 0, "safe": 0, "others": 0, "downed": 0,
                  "downed_safe": 0, "fell": 0, "fallbacks": 0, "injected": 0, "reinits": 0,
                  "failsafes": 0, "dropped": 0, "outliers": 0, "zmax": 0.0, "dmax": 0.0,
-                 "minsep": math.inf, "bad": 0, "impact": [], "touchdown": []} for k in KINDS}
+                 "minsep": math.inf, "bad": 0, "impact": [], "touchdown": [], "strikes": [],
+                 "shifts": 0} for k in KINDS}
     failures = []
     started = time.time()
     for r in range(a.runs):
         kind = KINDS[r % len(KINDS)]
         faults = draw_faults(rng, kind, names, t0, t1)
         seed = rng.randint(1, 10**6)
+        if a.only and r not in a.only:
+            continue
         sc = dict(base, name=f"fault-{r:03d}-{kind}", faults=faults)
         path = os.path.join(work, f"fault-{r:03d}.yaml")
         with open(path, "w") as f:
@@ -167,6 +188,10 @@ def main():
             st["others"] += 1
             st["safe"] += bool(v.get("landed_safely"))
             ok = ok and bool(v.get("landed_safely"))
+            st["shifts"] += int(v.get("landing_site_shifts") or 0)
+            if name in c["strikes"]:
+                st["strikes"].append(c["strikes"][name][1])
+                ok = False
         if "motors_off" in fj:
             st["fell"] += 1
             if fj["motors_off"].get("impact_vertical_speed_mps") is not None:
@@ -187,14 +212,18 @@ def main():
             failures.append(f"run {r} ({kind}, seed {seed}): faults {json.dumps(faults)}; "
                             f"non-finite commands {c['nan_commands']}; landed safely: " +
                             ", ".join(f"{n} {v.get('landed_safely')}"
-                                      for n, v in s["vehicles"].items()))
-        print(f"fault-campaign: run {r + 1}/{a.runs} {kind} {'ok' if ok else 'FAILED'} "
+                                      for n, v in s["vehicles"].items()) +
+                            "".join(f"; {n} struck the ground in flight at t = {ts:.2f} s, "
+                                    f"v_z {vz:.2f} m/s" for n, (ts, vz) in c["strikes"].items()
+                                    if n not in downed))
+        print(f"fault-campaign: run {r} ({r + 1}/{a.runs}) {kind} {'ok' if ok else 'FAILED'} "
               f"({time.time() - started:.0f} s)", file=sys.stderr, flush=True)
     print("| fault kind | runs | crashes | non-finite commands | other vehicles landed safely | "
           "downed vehicle | injected solver "
-          "failures | fallbacks | re-inits | failsafes | dropped / outlier measurements | "
+          "failures | fallbacks | re-inits | failsafes | landing sites moved | "
+          "ground strikes in flight | dropped / outlier measurements | "
           "max z [m] | max distance from start [m] | min separation [m] | runs failing a check |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     tot = {"runs": 0, "bad": 0}
     for k in KINDS:
         st = stats[k]
@@ -210,9 +239,12 @@ def main():
             imp = (f" (impact v_z {min(st['impact']):.1f} to {max(st['impact']):.1f} m/s)"
                    if st["impact"] else "")
             downed = f"{st['fell']}/{st['downed']} fell{imp}"
+        strikes = (f"{len(st['strikes'])} (v_z {min(st['strikes']):.2f} to "
+                   f"{max(st['strikes']):.2f} m/s)" if st["strikes"] else "0")
         print(f"| {k} | {st['runs']} | {st['crashes']} | {st['nan']} | "
               f"{st['safe']}/{st['others']} | {downed} | {st['injected']} | {st['fallbacks']} | "
-              f"{st['reinits']} | {st['failsafes']} | {st['dropped']} / {st['outliers']} | "
+              f"{st['reinits']} | {st['failsafes']} | {st['shifts']} | {strikes} | "
+              f"{st['dropped']} / {st['outliers']} | "
               f"{st['zmax']:.2f} | {st['dmax']:.2f} | "
               f"{st['minsep'] if math.isinf(st['minsep']) else round(st['minsep'], 2)} | "
               f"{st['bad']} |")

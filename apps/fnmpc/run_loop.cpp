@@ -210,6 +210,7 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
           cmd.yaw = out.yaw;
           world.SetCommand(i, cmd);
           if (out.recovery == formation::RecoveryAction::kReinitialise) ++L.reinitialisations;
+          if (out.recovery == formation::RecoveryAction::kShiftLandingSite) ++L.landing_site_shifts;
           if (out.recovery == formation::RecoveryAction::kFailsafe) {
             L.failsafe_time = t;
             L.failsafe_reason = std::string(formation::ToString(out.recovery_reason));

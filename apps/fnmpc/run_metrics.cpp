@@ -105,6 +105,7 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
       j["failsafes"] = std::isfinite(L.failsafe_time) ? 1 : 0;
       j["failsafe_time_s"] = Num(L.failsafe_time);
       j["failsafe_reason"] = L.failsafe_reason.empty() ? json(nullptr) : json(L.failsafe_reason);
+      j["landing_site_shifts"] = L.landing_site_shifts;
       recoveries += L.reinitialisations;
       failsafes += std::isfinite(L.failsafe_time) ? 1 : 0;
       j["solver_failures"] = L.failures;

@@ -28,6 +28,7 @@ struct VehicleRecord {
   std::vector<double> solver_time, solver_cpu, kkt, cost;
   long over_budget = 0, steps = 0, fallbacks = 0, guarded = 0, failures = 0;
   long reinitialisations = 0;
+  long landing_site_shifts = 0;  // landing sites moved clear of a vehicle below
   double failsafe_time = kNaN;
   std::string failsafe_reason;
   double first_step_time = kNaN;

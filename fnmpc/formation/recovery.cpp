@@ -46,6 +46,8 @@ std::string_view ToString(RecoveryAction a) {
       return "reinitialise";
     case RecoveryAction::kFailsafe:
       return "failsafe";
+    case RecoveryAction::kShiftLandingSite:
+      return "shift_landing_site";
   }
   return "?";
 }
@@ -62,6 +64,8 @@ std::string_view ToString(RecoveryReason r) {
       return "estimate_unusable";
     case RecoveryReason::kCommanded:
       return "commanded";
+    case RecoveryReason::kVehicleBelow:
+      return "vehicle_below";
   }
   return "?";
 }

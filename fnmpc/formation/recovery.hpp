@@ -102,11 +102,15 @@ inline bool InjectedSolverFailure(const SafetyConfig& s, int vehicle, double t, 
   return static_cast<double>(x >> 11) * 0x1.0p-53 < s.injected_failure_rate;
 }
 
-/// What the ladder asks the controller to do this step.
+/// What the ladder asks the controller to do this step, or (kShiftLandingSite) what the
+/// landing did: the safety transitions of the CSV column `recovery`.
 enum class RecoveryAction : int {
   kNone = 0,          ///< keep flying the NMPC
   kReinitialise = 1,  ///< restart the solver from the current estimate
   kFailsafe = 2,      ///< hand over to the failsafe controller (terminal)
+  /// Landing: the landing site was moved clear of a sensed vehicle below (docs/safety.md
+  /// "Landing clear of other vehicles"); not the ladder's, it never changes the ladder state.
+  kShiftLandingSite = 3,
 };
 
 /// Why the ladder acted.
@@ -116,6 +120,7 @@ enum class RecoveryReason : int {
   kReinitFailed = 2,          ///< fallbacks persisted after max_reinitialisations
   kEstimateUnusable = 3,      ///< no usable estimate for estimate_timeout
   kCommanded = 4,             ///< requested from outside (fault injection, operator)
+  kVehicleBelow = 5,          ///< a sensed vehicle within r_min of the landing site, below
 };
 std::string_view ToString(RecoveryAction a);
 std::string_view ToString(RecoveryReason r);

@@ -474,8 +474,25 @@ class FollowerCore final : public NmpcCore {
     if (changed) Aggregate();
   }
 
+  // Neighbour j's constant-velocity prediction at stage k (relative position and velocity),
+  // held on the ground: no neighbour is below its resting height (relative z floor_), where
+  // it stops. Without the floor a falling neighbour's prediction went metres below the
+  // ground within the horizon (and its estimate too, once the filter gated the measurements
+  // of the stopped vehicle), its relative-position bound then conflicted with the altitude
+  // bound (equal penalties) and the cost broke the tie downwards: both followers of fault
+  // campaign run 55 followed their falling leader into the ground at 2.3 m/s.
+  void Predict(int j, int k, Vec3* rel, Vec3* vel) const {
+    const double tk = k * c_.rti.sample_time;
+    *rel = rel_[j] + tk * vel_[j];
+    *vel = vel_[j];
+    if (rel->z() < floor_) {
+      rel->z() = floor_;
+      vel->z() = 0.0;
+    }
+  }
+
   // Stage parameters from the neighbours' constant-velocity predictions (their mean over the
-  // active ones), relative-position bounds mapped onto the displacement s:
+  // active ones; Predict), relative-position bounds mapped onto the displacement s:
   // -b <= c_j - s <= b for every active j (cf. SetReducedFollowerStage), the altitude bounds
   // onto s_z from the current height, the obstacles' predictions.
   X Stage(const NmpcInput& in) {
@@ -484,29 +501,32 @@ class FollowerCore final : public NmpcCore {
     rti::quadrotor::SetSpeedBounds(3, c_.max_speed, &lb, &ub);
     const Vec3& b = c_.relative_position_bound;
     const bool height_known = std::isfinite(in.height);
-    Vec3 rel_mean = Vec3::Zero(), vel_mean = Vec3::Zero();
+    floor_ = height_known ? c_.ground_height - in.height : -kInf;
     for (int j = 0; j < nn_; ++j) {
       rel_[j] = in.neighbours[j].rel_pos;
       vel_[j] = in.neighbours[j].vel;
-      if (!active_[j]) continue;
-      rel_mean += rel_[j];
-      vel_mean += vel_[j];
     }
-    if (active_count_ > 0) {
-      rel_mean /= active_count_;
-      vel_mean /= active_count_;
-    }  // else: zero, finite and unweighted (keeps the linearisation finite)
     for (int k = 0; k <= solver_.horizon(); ++k) {
       Solver::P& p = params_[k];
       p[0] = yaw_ref_;
-      p.segment<3>(Reduced::ParamRelPos(0)) = rel_mean + (k * ts) * vel_mean;
-      p.segment<3>(Reduced::ParamVel(0)) = vel_mean;
-      p.segment<3>(Problem::kParamAcceleration) = in.disturbance;
       Vec3 lo = Vec3::Constant(-kInf), hi = Vec3::Constant(kInf);
+      // With no active neighbour: zero, finite and unweighted (keeps the linearisation finite).
+      Vec3 rel_mean = Vec3::Zero(), vel_mean = Vec3::Zero();
       for (int j = 0; j < nn_; ++j) {
         if (!active_[j]) continue;
-        rti::quadrotor::IntersectRelativeBound(rel_[j] + (k * ts) * vel_[j], b, &lo, &hi);
+        Vec3 rel, vel;
+        Predict(j, k, &rel, &vel);
+        rel_mean += rel;
+        vel_mean += vel;
+        rti::quadrotor::IntersectRelativeBound(rel, b, &lo, &hi);
       }
+      if (active_count_ > 0) {
+        rel_mean /= active_count_;
+        vel_mean /= active_count_;
+      }
+      p.segment<3>(Reduced::ParamRelPos(0)) = rel_mean;
+      p.segment<3>(Reduced::ParamVel(0)) = vel_mean;
+      p.segment<3>(Problem::kParamAcceleration) = in.disturbance;
       for (int o = 0; o < kObstacleSlots; ++o) {
         if (o >= in.obstacles) {
           Base::SetUnused(o, &p);
@@ -535,28 +555,28 @@ class FollowerCore final : public NmpcCore {
   // comment): the per-neighbour cost minus the aggregated one, at the current iterate's yaw.
   double SpreadCost() const {
     if (active_count_ < 2) return 0.0;
-    const double ts = c_.rti.sample_time;
     const Vec3 wp = c_.weights.position, wv = c_.weights.velocity;
     double sum = 0.0;
     for (int k = 0; k <= solver_.horizon(); ++k) {
       const double psi = solver_.states()[k][model::QuadrotorModel::kPsi];
-      std::array<Vec3, kMaxNeighbours> a{};
+      std::array<Vec3, kMaxNeighbours> a{}, v{};
       Vec3 a_mean = Vec3::Zero(), v_mean = Vec3::Zero();
       for (int j = 0; j < nn_; ++j) {
         if (!active_[j]) continue;
-        Vec3 r;
-        ocp::RelativeRows::Write(c_.frame, Vec3(rel_[j] + (k * ts) * vel_[j]), psi, 1.0, 0, 0, 0,
-                                 &r, static_cast<Mat<3, 9>*>(nullptr));
+        Vec3 r, rel;
+        Predict(j, k, &rel, &v[j]);
+        ocp::RelativeRows::Write(c_.frame, rel, psi, 1.0, 0, 0, 0, &r,
+                                 static_cast<Mat<3, 9>*>(nullptr));
         a[j] = r - desired_[j];
         a_mean += a[j];
-        v_mean += vel_[j];
+        v_mean += v[j];
       }
       a_mean /= active_count_;
       v_mean /= active_count_;
       double stage = 0.0;
       for (int j = 0; j < nn_; ++j) {
         if (!active_[j]) continue;
-        stage += (a[j] - a_mean).cwiseAbs2().dot(wp) + (vel_[j] - v_mean).cwiseAbs2().dot(wv);
+        stage += (a[j] - a_mean).cwiseAbs2().dot(wp) + (v[j] - v_mean).cwiseAbs2().dot(wv);
       }
       sum += 0.5 * (k < solver_.horizon() ? 1.0 : c_.weights.terminal_factor) * stage;
     }
@@ -571,6 +591,7 @@ class FollowerCore final : public NmpcCore {
   int nn_ = 0, active_count_ = 0;
   std::array<bool, kMaxNeighbours> active_{};
   std::array<Vec3, kMaxNeighbours> desired_{}, rel_{}, vel_{};
+  double floor_ = -kInf;  // relative z of a neighbour resting on the ground [m] (Predict)
   std::vector<Solver::Y> yref_;
   Solver::YN yref_n_;
   std::vector<Solver::P> params_;
@@ -612,6 +633,14 @@ constexpr double kTrackSwapMargin = 0.5;
 constexpr double kPassingShift = 0.3;
 /// A neighbour whose estimated CoM is within this of the resting height is on the ground [m].
 constexpr double kGroundedMargin = 0.15;
+/// Touchdown: the ground-contact condition must hold this long before the motors stop [s]
+/// (PX4's multicopter land detector, LAND_DETECTOR_TRIGGER_TIME_US = 300 ms). Without it a
+/// descent that starts within touchdown_margin of the ground stopped the motors at once, in
+/// the air (fault campaign run 55: a 3 cm drop, 0.67 m/s at impact).
+constexpr double kTouchdownConfirmTime = 0.3;
+/// Landing: a site moved clear of a vehicle below is put this much beyond r_min from it [m],
+/// so that estimate noise (centimetres) does not move it again at every step.
+constexpr double kLandingSiteClearance = 0.1;
 
 bool Rejected(estimation::EkfStatus s) {
   using estimation::EkfStatus;
@@ -1039,6 +1068,7 @@ void VehicleController::EnterFailsafe(double t, RecoveryReason reason) {
   failsafe_reason_ = reason;
   phase_ = FlightPhase::kFailsafe;
   phase_start_ = t;
+  contact_since_ = kNaN;
   const double z = FailsafeHeight(t);
   z_ref_ = std::isfinite(z) ? z : kNaN;
   pid_.Reset(std::isfinite(last_command_[0]) ? last_command_[0] : config_.params.mass * kGravity);
@@ -1053,12 +1083,60 @@ double VehicleController::FailsafeHeight(double t) const {
 }
 
 // Touchdown: on the ground (height within the margin) and no longer moving down, so the
-// motors never stop while the vehicle still falls.
-bool VehicleController::TouchedDown(double z, double vz) const {
+// motors never stop while the vehicle still falls, for kTouchdownConfirmTime without a
+// break: a vehicle hovering a few centimetres up when its reference passes the ground is
+// still flying, and the PID brings it down within that time.
+bool VehicleController::TouchedDown(double t, double z, double vz) {
   const double ground = config_.ground_height;
   const bool settled = std::isfinite(vz) && std::abs(vz) < 0.1;
-  return std::isfinite(z) && z < ground + config_.touchdown_margin && z_ref_ < ground &&
-         (settled || z_ref_ <= ground - 0.3);
+  const bool contact = std::isfinite(z) && z < ground + config_.touchdown_margin &&
+                       z_ref_ < ground && (settled || z_ref_ <= ground - 0.3);
+  if (!contact) {
+    contact_since_ = kNaN;
+    return false;
+  }
+  if (!std::isfinite(contact_since_)) contact_since_ = t;
+  return t - contact_since_ >= kTouchdownConfirmTime - 1e-9;
+}
+
+// Landing clear of other vehicles: every sensed vehicle (formation neighbour or other, finite
+// estimate, an accepted measurement within neighbour_timeout, as for collision avoidance)
+// that is not clearly above (its CoM less than r_min higher) and within r_min of the landing
+// site horizontally moves the site away from it, to r_min + kLandingSiteClearance (along the
+// line from it through the site, else through the own position, else +x). The PID flies
+// there; the descent waits while the vehicle itself is within r_min of one of them
+// horizontally and less than 2 r_min above it (higher up it descends while it moves: the
+// landing from the take-off height fits its time). Returns true while the descent waits; a
+// move is logged in `out`.
+bool VehicleController::ClearLandingSite(double t, ControlOutput* out) {
+  const double r = config_.safety.collision_radius;
+  const Vec3& p = estimates_.own.position;
+  if (!(r > 0.0) || !hold_xy_.allFinite() || !p.head<2>().allFinite()) return false;
+  const double timeout = config_.safety.neighbour_timeout;
+  bool wait = false;
+  auto check = [&](const estimation::NeighbourStateVec& x, double seen) {
+    if (!x.head<3>().allFinite() || !std::isfinite(seen) || t - seen > timeout) return;
+    if (x[2] >= r) return;  // clearly above: not in the descent's way
+    const Vec<2> o = p.head<2>() + x.head<2>();
+    Vec<2> away = hold_xy_ - o;
+    if (away.norm() < r) {
+      if (away.norm() < 1e-3) away = -x.head<2>();
+      if (away.norm() < 1e-3) away = Vec<2>(1.0, 0.0);
+      hold_xy_ = o + (r + kLandingSiteClearance) * away.normalized();
+      ++landing_site_shifts_;
+      out->recovery = RecoveryAction::kShiftLandingSite;
+      out->recovery_reason = RecoveryReason::kVehicleBelow;
+    }
+    if (x.head<2>().norm() < r && -x[2] < 2.0 * r) wait = true;
+  };
+  // Two passes: a move away from one vehicle may bring the site near another.
+  for (int pass = 0; pass < 2; ++pass) {
+    for (std::size_t j = 0; j < estimates_.neighbours.size(); ++j)
+      check(estimates_.neighbours[j], presence_[j].seen);
+    for (std::size_t k = 0; k < tracks_.size(); ++k)
+      check(estimates_.others[k], tracks_[k].presence.seen);
+  }
+  return wait;
 }
 
 ControlOutput VehicleController::Step(double t) {
@@ -1092,6 +1170,7 @@ ControlOutput VehicleController::Step(double t) {
   if (phase_ == FlightPhase::kNmpc && t >= config_.landing_time) {
     phase_ = FlightPhase::kLanding;
     phase_start_ = t;
+    contact_since_ = kNaN;
     z_ref_ = std::isfinite(z) ? z : h;
     hold_xy_ = own.position.head<2>();
     pid_.Reset(last_command_[0]);
@@ -1154,14 +1233,16 @@ ControlOutput VehicleController::Step(double t) {
       break;  // below
     case FlightPhase::kLanding: {
       if (PidEstimateLost(t, z, &out)) break;
-      z_ref_ = std::max(ground - 0.3, z_ref_ - config_.descent_speed * dt);
-      const PidCommand c =
-          pid_.Update(dt, z_ref_, -config_.descent_speed, z, own.velocity, own.euler, HoldError());
+      // Not onto another vehicle: move the site clear, descend once not right above it.
+      const bool wait = ClearLandingSite(t, &out);
+      const double vz_ref = wait ? 0.0 : -config_.descent_speed;
+      if (!wait) z_ref_ = std::max(ground - 0.3, z_ref_ - config_.descent_speed * dt);
+      const PidCommand c = pid_.Update(dt, z_ref_, vz_ref, z, own.velocity, own.euler, HoldError());
       thrust = c.thrust;
       roll = c.roll;
       pitch = c.pitch;
       Blend(t, &thrust, &roll, &pitch);
-      if (TouchedDown(z, own.velocity.z())) {
+      if (TouchedDown(t, z, own.velocity.z())) {
         phase_ = FlightPhase::kLanded;
         phase_start_ = t;
         thrust = roll = pitch = 0.0;
@@ -1258,7 +1339,7 @@ ControlOutput VehicleController::Step(double t) {
       const PidCommand c = pid_.Update(dt, z_ref_, vz_ref, zf, Vec3(0.0, 0.0, vz), Vec3::Zero(),
                                        Vec<2>::Constant(kNaN));
       thrust = c.thrust;
-      if (TouchedDown(zf, vz)) {
+      if (TouchedDown(t, zf, vz)) {
         phase_ = FlightPhase::kLanded;
         phase_start_ = t;
         thrust = 0.0;

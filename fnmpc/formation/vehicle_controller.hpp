@@ -151,6 +151,8 @@ class VehicleController {
   /// Whether the failsafe controller took over, and why.
   [[nodiscard]] bool failsafe() const { return ladder_.failsafe(); }
   [[nodiscard]] RecoveryReason failsafe_reason() const { return failsafe_reason_; }
+  /// Times the landing moved its site clear of a sensed vehicle below (docs/safety.md).
+  [[nodiscard]] long landing_site_shifts() const { return landing_site_shifts_; }
   /// Follower: whether neighbour j (configuration order) is in the cost.
   [[nodiscard]] bool neighbour_active(std::size_t j) const { return presence_.at(j).active; }
   /// Tracking slots for the other vehicles in view (max_tracked minus the formation
@@ -178,7 +180,8 @@ class VehicleController {
   void UpdateNeighbourPresence(double t);
   void EnterFailsafe(double t, RecoveryReason reason);
   bool PidEstimateLost(double t, double z, ControlOutput* out);
-  bool TouchedDown(double z, double vz) const;
+  bool TouchedDown(double t, double z, double vz);
+  bool ClearLandingSite(double t, ControlOutput* out);
   template <class Input>
   void NearestObstacles(double t, Input* in) const;
   void TrackMocapPose(const Measurement& m);
@@ -232,6 +235,8 @@ class VehicleController {
   // when the phase starts; NaN = velocity damping only.
   Vec<2> hold_xy_ = Vec<2>::Constant(kNaN);
   double land_z0_ = kNaN;
+  double contact_since_ = kNaN;  // start of the current ground contact (TouchedDown) [s]
+  long landing_site_shifts_ = 0;
   double voltage_ = kNaN;  // filtered battery voltage
   double voltage_stamp_ = kNaN;
   double yaw_ref_ = kNaN;

@@ -47,13 +47,17 @@ inline ControllerConfig BaseConfig(bool leader) {
 /// The NMPC model as plant (RK4 over one sampling time, 10 sub-steps) on a flat ground.
 struct Plant {
   Vec<9> x = Vec<9>::Zero();
+  /// Vertical speed at the last ground contact [m/s] (NaN: none yet).
+  double impact_vz = kNaN;
   Plant() { x[2] = kGround; }
   void Step(const ControlOutput& u) {
     const Vec3 in(u.thrust, u.roll, u.pitch);
     for (int i = 0; i < 10; ++i) {
+      const bool airborne = x[2] > kGround;
       x = model::Rk4<model::QuadrotorModel>(x, in, u.yaw, model::AttitudeModelParams{}, kTs / 10,
                                             1);
       if (x[2] < kGround) {
+        if (airborne) impact_vz = x[5];
         x[2] = kGround;
         x.segment<3>(3).setZero();
       }

@@ -149,6 +149,155 @@ TEST(SafetyTest, CommandedFailsafeLandsFromAnyHeight) {
   EXPECT_NEAR(plant.x[2], kGround, 0.02);
 }
 
+TEST(SafetyTest, FailsafeDescentFromJustAboveTheGroundKeepsTheMotorsOnUntilContact) {
+  // Given a leader whose failsafe holds 2 cm above its resting height, within the
+  // touchdown margin (3 cm; fault campaign run 55: a follower that had bounced off the
+  // ground hovered there when its failsafe began),
+  // (a take-off to 2 cm, the failsafe triggered in its hover before the NMPC takes over)
+  ControllerConfig cfg = BaseConfig(true);
+  cfg.takeoff_height = kGround + 0.02;
+  cfg.hover_before_switch = 10.0;
+  cfg.safety.recovery.failsafe_hold_time = 2.0;
+  VehicleController c(cfg);
+  Plant plant;
+  double t = 0.0;
+  for (; t < 4.0; t += kTs) plant.Step(c.ControlWithEstimates(t, plant.Estimate(t), {}));
+  ASSERT_EQ(c.phase(), FlightPhase::kTakeoff);
+  c.TriggerFailsafe(t);
+  for (double s = 0.0; s < cfg.safety.recovery.failsafe_hold_time; s += kTs, t += kTs)
+    plant.Step(c.ControlWithEstimates(t, plant.Estimate(t), {}));
+  ASSERT_NEAR(plant.x[2], kGround + 0.02, 0.005);
+  // When it descends
+  double motors_off_height = kNaN;
+  for (double s = 0.0; s < 5.0 && c.phase() != FlightPhase::kLanded; s += kTs, t += kTs) {
+    const ControlOutput o = c.ControlWithEstimates(t, plant.Estimate(t), {});
+    if (o.phase == FlightPhase::kLanded) motors_off_height = plant.x[2];
+    plant.Step(o);
+  }
+  // Then the motors stop only on the ground (the contact held for 0.3 s; before, they stopped
+  // at once, 2 cm up, and it fell: 0.63 m/s against the 0.6 m/s touchdown limit)
+  ASSERT_EQ(c.phase(), FlightPhase::kLanded);
+  for (int k = 0; k < 10; ++k, t += kTs)  // what the motors' stop leaves falls
+    plant.Step(c.ControlWithEstimates(t, plant.Estimate(t), {}));
+  EXPECT_NEAR(motors_off_height, kGround, 1e-9);
+  ASSERT_TRUE(std::isfinite(plant.impact_vz));
+  EXPECT_GT(plant.impact_vz, -(cfg.safety.recovery.failsafe_descent_speed + 0.1));
+  std::printf("[   INFO   ] touchdown from 2 cm: %.3f m/s\n", plant.impact_vz);
+}
+
+/// A follower hovering in formation with its leader (vehicle 0) and vehicle 2; at 8 s
+/// vehicle 2 comes down (a killed vehicle landed by its autopilot) 0.1 m beside the point
+/// under the follower; the follower lands at 12 s. Returns the smallest CoM distance to
+/// vehicle 2 during the landing, its horizontal distance at the end, and the outputs.
+struct LandingResult {
+  double min_distance = kInf, final_horizontal = kNaN;
+  std::vector<ControlOutput> out;
+};
+LandingResult LandBesideDownedVehicle(double collision_radius) {
+  ControllerConfig cfg = BaseConfig(false);
+  cfg.neighbours = {{0, Vec3(1.0, -1.0, 0.0)}, {2, Vec3(-1.0, 0.0, 0.0)}};
+  cfg.safety.collision_radius = collision_radius;
+  cfg.landing_time = 12.0;
+  VehicleController c(cfg);
+  Plant plant;
+  const Vec3 p0(1.3, -0.8, 1.1);
+  Vec3 p2(-0.7, 0.2, 1.1);
+  std::vector<estimation::NeighbourStateVec> nb(2);
+  LandingResult r;
+  for (double t = 0.0; t <= 22.0 && c.phase() != FlightPhase::kLanded; t += kTs) {
+    if (t >= 8.0 && p2.z() > kGround) {
+      p2 = Vec3(plant.x[0] + 0.08, plant.x[1] + 0.06, kGround);
+    }
+    estimation::VehicleEstimate e = plant.Estimate(t);
+    e.position.z() -= kGround;
+    nb[0].setZero();
+    nb[0].head<3>() = p0 - plant.x.head<3>();
+    nb[1].setZero();
+    nb[1].head<3>() = p2 - plant.x.head<3>();
+    r.out.push_back(c.ControlWithEstimates(t, e, nb));
+    plant.Step(r.out.back());
+    if (c.phase() == FlightPhase::kLanding || c.phase() == FlightPhase::kLanded)
+      r.min_distance = std::min(r.min_distance, (plant.x.head<3>() - p2).norm());
+  }
+  EXPECT_EQ(c.phase(), FlightPhase::kLanded) << "radius " << collision_radius;
+  r.final_horizontal = (plant.x.head<2>() - p2.head<2>()).norm();
+  return r;
+}
+
+TEST(SafetyTest, LandingMovesItsSiteClearOfAVehicleBelow) {
+  // Without collision avoidance (r_min 0) the follower lands on the downed vehicle
+  const LandingResult off = LandBesideDownedVehicle(0.0);
+  EXPECT_LT(off.final_horizontal, 0.15);
+  // With it the landing moves its site to r_min + 0.1 m from the vehicle below, says so once
+  // with the reason, descends only once clear, and lands there
+  const double r = 0.45;
+  const LandingResult on = LandBesideDownedVehicle(r);
+  std::printf(
+      "[   INFO   ] landing beside a downed vehicle: min distance %.3f m without, %.3f m "
+      "with r_min %.2f m (final horizontal %.3f m)\n",
+      off.min_distance, on.min_distance, r, on.final_horizontal);
+  int shifts = 0;
+  for (const ControlOutput& o : on.out) {
+    if (o.recovery != RecoveryAction::kShiftLandingSite) continue;
+    ++shifts;
+    EXPECT_EQ(o.recovery_reason, RecoveryReason::kVehicleBelow);
+    EXPECT_EQ(o.phase, FlightPhase::kLanding);
+  }
+  EXPECT_EQ(shifts, 1);
+  EXPECT_GT(on.final_horizontal, r);
+  // near the moved site (r_min + 0.1 m; the PID's position loop overshoots a step by about
+  // 0.1 m: its integral's zero)
+  EXPECT_LT(on.final_horizontal, r + 0.1 + 0.15);
+  EXPECT_GT(on.min_distance, r - 0.02);
+}
+
+TEST(SafetyTest, FollowerDoesNotFollowAFallingNeighbourIntoTheGround) {
+  // Given a follower in formation with its leader (vehicle 0, desired at the same height) and
+  // vehicle 2, all at about 1.1 m, its height known (the altitude bound applies)
+  ControllerConfig cfg = BaseConfig(false);
+  cfg.neighbours = {{0, Vec3(1.0, -1.0, 0.0)}, {2, Vec3(-1.0, 0.0, 0.0)}};
+  VehicleController c(cfg);
+  Plant plant;
+  Vec3 p0(1.3, -0.8, 1.1), v0 = Vec3::Zero();
+  const Vec3 p2(-0.7, 0.2, 1.1);
+  std::vector<estimation::NeighbourStateVec> nb(2);
+  double zmin = kInf, t_impact = kNaN;
+  for (double t = 0.0; t <= 16.0; t += kTs) {
+    // When the leader's motors stop at 8 s (fault campaign run 55): it falls freely onto the
+    // ground; its estimate, as the follower's filter gave it in that run, goes on falling at
+    // the impact speed (the filter gates the measurements of the stopped vehicle) until it
+    // is dropped for want of accepted measurements, neighbour_timeout later
+    if (t >= 8.0) {
+      v0.z() -= std::isnan(t_impact) ? kGravity * kTs : 0.0;
+      p0.z() += v0.z() * kTs;
+      if (std::isnan(t_impact) && p0.z() <= kGround) t_impact = t;
+    }
+    const bool lost = t >= t_impact + cfg.safety.neighbour_timeout;
+    estimation::VehicleEstimate e = plant.Estimate(t);
+    e.position.z() -= kGround;
+    nb[0].setZero();
+    nb[0].head<3>() = p0 - plant.x.head<3>();
+    nb[0].segment<3>(3) = v0;
+    if (lost) nb[0].setConstant(kNaN);
+    nb[1].setZero();
+    nb[1].head<3>() = p2 - plant.x.head<3>();
+    // (ControlWithEstimates has no motion capture: the height is the estimate's)
+    const ControlOutput o = c.ControlWithEstimates(t, e, nb);
+    EXPECT_FALSE(o.fallback) << "t = " << t;
+    plant.Step(o);
+    if (t >= 8.0) zmin = std::min(zmin, plant.x[2]);
+  }
+  ASSERT_TRUE(std::isfinite(t_impact));
+  std::printf("[   INFO   ] follower's lowest CoM after its leader fell: %.3f m\n", zmin);
+  // Then it never touches the ground: the leader is held on the ground in the prediction
+  // (not below it), so the altitude bound (min_altitude 0.3 m, a few cm of slack) holds
+  EXPECT_TRUE(std::isnan(plant.impact_vz)) << "struck the ground at " << plant.impact_vz;
+  EXPECT_GT(zmin, cfg.safety.min_altitude - 0.05);
+  // and the lost leader left the cost
+  EXPECT_FALSE(c.neighbour_active(0));
+  EXPECT_TRUE(c.neighbour_active(1));
+}
+
 TEST(SafetyTest, FailsafeHoldIgnoresMotionCaptureOutliers) {
   // Given a leader hovering under the NMPC with motion capture at 60 Hz
   ControllerConfig cfg = BaseConfig(true);
