@@ -6,9 +6,13 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <array>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include "apps/fnmpc/scenario_runner.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
@@ -35,13 +39,40 @@ config::VehicleFault Fault(const config::ScenarioConfig& sc, const std::string& 
   return f;
 }
 
+std::string RunDir(const std::string& tag) {
+  return testing::TempDir() + "/fnmpc-faults-" + tag + "-" + std::to_string(getpid());
+}
+
 json RunFaulty(const config::ScenarioConfig& sc, const std::string& tag) {
-  const std::string dir =
-      testing::TempDir() + "/fnmpc-faults-" + tag + "-" + std::to_string(getpid());
+  const std::string dir = RunDir(tag);
   std::filesystem::remove_all(dir);
   RunOptions o;
   o.seed = 3;
   return RunScenario(sc, o, dir);
+}
+
+/// The true (x, y) [m] of the last row of a vehicle's CSV.
+std::array<double, 2> LastPosition(const std::string& csv_path) {
+  std::ifstream f(csv_path);
+  std::string header, line, last;
+  std::getline(f, header);
+  while (std::getline(f, line)) {
+    if (!line.empty()) last = line;
+  }
+  auto split = [](const std::string& l) {
+    std::vector<std::string> out;
+    std::stringstream ss(l);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) out.push_back(cell);
+    return out;
+  };
+  const auto names = split(header), values = split(last);
+  std::array<double, 2> xy{kNaN, kNaN};
+  for (std::size_t i = 0; i < names.size() && i < values.size(); ++i) {
+    if (names[i] == "x") xy[0] = std::stod(values[i]);
+    if (names[i] == "y") xy[1] = std::stod(values[i]);
+  }
+  return xy;
 }
 
 TEST(FaultFlightTest, KilledControllerIsLandedByItsAutopilot) {
@@ -91,6 +122,33 @@ TEST(FaultFlightTest, VehicleWithMotorsOffFalls) {
   EXPECT_TRUE(s["faults"]["landed_safely_except_downed"].get<bool>()) << s.dump(2);
   EXPECT_TRUE(s["vehicles"]["leader"]["landed_safely"].get<bool>());
   EXPECT_TRUE(s["vehicles"]["follower2"]["landed_safely"].get<bool>());
+}
+
+TEST(FaultFlightTest, LeaderLandsClearOfAFallenFollowerBelowIt) {
+  // Given the stacked scenario (follower `below` 0.5 m under the leader, wake on) shortened to
+  // 30 s, with `below`'s motors off at 17 s while the leader holds its waypoint: it falls
+  // onto the ground under the leader (fault campaign run 198 had a killed follower come to
+  // rest 0.11 m beside the point under the leader, which then landed on it),
+  config::ScenarioConfig sc = config::LoadScenarioFile(std::string(FNMPC_SOURCE_DIR) +
+                                                       "/config/scenarios/stress/stacked.yaml");
+  sc = Shortened(sc, 30.0);
+  sc.faults.motors_off = Fault(sc, "below", 17.0);
+  const json s = RunFaulty(sc, "land-clear");
+  ASSERT_TRUE(s["faults"]["motors_off"]["impact_time_s"].is_number());
+  // (where it rests: it slides a little after the impact)
+  const std::array<double, 2> fallen = LastPosition(RunDir("land-clear") + "/below.csv");
+  const std::array<double, 2> leader = LastPosition(RunDir("land-clear") + "/leader.csv");
+  const double r = sc.safety.collision_radius;
+  // Then the leader, which senses it (relative sensor, a tracking slot for the vehicles
+  // that are not its formation neighbours), moves its landing site clear (logged once) and
+  // lands safely more than r_min from it, instead of onto it.
+  const json& l = s["vehicles"]["leader"];
+  EXPECT_EQ(l["landing_site_shifts"].get<long>(), 1) << l.dump(2);
+  EXPECT_TRUE(l["landed_safely"].get<bool>()) << l.dump(2);
+  const double d = std::hypot(leader[0] - fallen[0], leader[1] - fallen[1]);
+  EXPECT_GT(d, r) << "leader at (" << leader[0] << ", " << leader[1] << "), fallen at ("
+                  << fallen[0] << ", " << fallen[1] << ")";
+  EXPECT_TRUE(s["vehicles"]["side"]["landed_safely"].get<bool>());
 }
 
 TEST(FaultFlightTest, InjectedSolverFailuresReinitialiseAndMeasurementFaultsAreCounted) {
