@@ -4,7 +4,7 @@
 and prints the markdown table of docs/results.md, section "Faults and safety".
 
   /usr/bin/python3 scripts/safety-campaign.py [--fnmpc build/apps/fnmpc/fnmpc] [--out runs/safety]
-      [--runs N] [--only NAME ...] [--reality on|off]
+      [--runs N] [--only NAME ...] [--reality on|off] [--compensation none|observer]
 
 Per scenario: runs, vehicles that ended on the ground with motors off (landed or
 failsafe-landed), the highest true CoM height and the largest horizontal distance from the
@@ -68,6 +68,8 @@ def main():
     ap.add_argument("--only", nargs="*", default=None, help="scenario names to fly")
     ap.add_argument("--reality", choices=("on", "off"),
                     help="fnmpc run --reality (default: the scenarios' own, off in stress/)")
+    ap.add_argument("--compensation", choices=("none", "observer"),
+                    help="fnmpc run --compensation (default: the scenarios' own)")
     a = ap.parse_args()
     if a.runs < 0:
         ap.error("--runs must be >= 0")
@@ -82,6 +84,8 @@ def main():
                "-o", out_dir, "--overwrite"]
         if a.reality:
             cmd += ["--reality", a.reality]
+        if a.compensation:
+            cmd += ["--compensation", a.compensation]
         print(f"safety-campaign: {name} ({runs} runs)", file=sys.stderr, flush=True)
         r = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         # 3: the runs finished but some vehicle failed (envelope, landing, failsafe;
