@@ -7,8 +7,14 @@
 //   [force]      the aerodynamic force on the shipped vehicle hovering 2-6 rotor diameters
 //                directly below another, both held in place in the World, reality on (rotor
 //                inflow, advected turbulent wake: mean and standard deviation over 10 s) and
-//                off (steady jet acting as body drag).
-// Usage: reality_validation UIUC_CSV   (tests/sim/data/uiuc_apc10x7_4011rpm.csv)
+//                off (steady jet acting as body drag);
+//   [quadrotor_wake], [quadrotor_profiles]  the same mean wake in the normalisation of
+//                Bauersfeld et al. (2024): U / U_H against s / l and r / l, l the distance
+//                between opposite motors (2 arm_length of the vehicle file);
+//   [force_per_weight]  the force of [force] as a share of the weight (= the upper vehicle's
+//                thrust) at vertical distances s / l, reality on, for the Crazyflie comparison.
+// Usage: reality_validation UIUC_CSV CRAZYFLIE_CSV
+//   (tests/sim/data/uiuc_apc10x7_4011rpm.csv, tests/sim/data/neural_swarm_fig3_crazyflie.csv)
 #include <cmath>
 #include <cstdio>
 #include <exception>
@@ -109,6 +115,44 @@ ForceStats ForceBelow(const fnmpc::model::VehicleParams& p, double dz, bool real
   return st;
 }
 
+// The mean wake of the shipped vehicle hovering (thrust [N]), in the variables of Bauersfeld et
+// al. (2024): U_H = sqrt(T / (2 rho 4 pi R^2)) (the simulator's v_h), lengths over the
+// distance between opposite motors l [m].
+void QuadrotorWake(double thrust, double l) {
+  const sim::DownwashSettings dw;
+  const double u_h = sim::HoverInducedVelocity(dw, thrust);
+  std::printf("[quadrotor_wake]\nthrust,u_h,motor_distance\n%.4f,%.5f,%.4f\n", thrust, u_h, l);
+  std::printf("s_over_l,uc_over_uh,half_width_over_l\n");
+  for (int k = 5; k <= 200; ++k) {
+    const double s = 0.1 * k * l;
+    std::printf("%.1f,%.5f,%.5f\n", 0.1 * k, sim::WakeCentrelineVelocity(dw, thrust, s) / u_h,
+                sim::WakeHalfWidth(dw, s) / l);
+  }
+  std::printf("[quadrotor_profiles]\ns_over_l,r_over_l,u_over_uh\n");
+  for (double s_l : {2.5, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 20.0}) {
+    for (int k = 0; k <= 100; ++k) {
+      const double r_l = 0.02 * k;
+      const Vec3 v = sim::DownwashVelocity(dw, Vec3::Zero(), Vec3::UnitZ(), thrust,
+                                           Vec3(r_l * l, 0.0, -s_l * l));
+      std::printf("%.1f,%.2f,%.5f\n", s_l, r_l, -v.z() / u_h);
+    }
+  }
+}
+
+// The downward aerodynamic force on the lower vehicle (reality on) over its weight at vertical
+// distances s / l: a grid over 2-6 and the distances of the Crazyflie data.
+void ForcePerWeight(const fnmpc::model::VehicleParams& p, const std::vector<double>& data_s_l) {
+  const double l = 2.0 * p.arm_length;
+  std::vector<double> s_l = data_s_l;
+  for (int k = 0; k <= 16; ++k) s_l.push_back(2.0 + 0.25 * k);
+  std::printf("[force_per_weight]\ns_over_l,fz_over_weight,fz_sd_over_weight\n");
+  for (double x : s_l) {
+    const ForceStats on = ForceBelow(p, x * l, true);
+    const double w = p.mass * fnmpc::kGravity;
+    std::printf("%.4f,%.5f,%.5f\n", x, -on.mean.z() / w, on.sd.z() / w);
+  }
+}
+
 void Force(const fnmpc::model::VehicleParams& p) {
   const double diameter = 2.0 * sim::DownwashSettings().rotor_radius;
   std::printf("[force]\nseparation_D,fz_on_mean,fz_on_sd,fxy_on_sd,fz_off,weight\n");
@@ -123,8 +167,8 @@ void Force(const fnmpc::model::VehicleParams& p) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: %s UIUC_CSV\n", argv[0]);
+  if (argc != 3) {
+    std::fprintf(stderr, "usage: %s UIUC_CSV CRAZYFLIE_CSV\n", argv[0]);
     return 2;
   }
   try {
@@ -137,6 +181,17 @@ int main(int argc, char** argv) {
     Propeller(j0, ct0);
     Wake(p.mass * fnmpc::kGravity);
     Force(p);
+    QuadrotorWake(p.mass * fnmpc::kGravity, 2.0 * p.arm_length);
+    // The Crazyflie data's vertical distances over the Crazyflie's distance between opposite
+    // motors (its '#' lines give the source of both).
+    const fnmpc::config::CsvTable cf = fnmpc::config::ReadCsv(
+        argv[2], {"separation_m", "force_g", "weight_g", "motor_distance_m"}, "separation_m",
+        /*hash_comments=*/true);
+    std::vector<double> s_l;
+    for (std::size_t r = 0; r < cf.rows(); ++r) {
+      s_l.push_back(cf.Column("separation_m")[r] / cf.Column("motor_distance_m")[r]);
+    }
+    ForcePerWeight(p, s_l);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s\n", e.what());
     return 1;
