@@ -17,6 +17,7 @@
 
 #include "fnmpc/core/rotation.hpp"
 #include "fnmpc/sim/cell_list.hpp"
+#include "fnmpc/sim/free_joint_force.hpp"
 
 namespace fnmpc::sim {
 
@@ -323,6 +324,9 @@ struct Vehicle {
   Vec3 p_prev = Vec3::Zero();  // position before the last physics step (instability report)
   Vec3 accel = Vec3::Zero();
   Vec3 aero_force = Vec3::Zero(), aero_torque = Vec3::Zero();
+  // This step's total wrench at the centre of mass, world frame (propulsion + aerodynamics).
+  Vec3 force_w = Vec3::Zero(), torque_w = Vec3::Zero();
+  Vec3 com_b = Vec3::Zero();  // centre of mass from the body origin, body frame (body_ipos)
   AutopilotStatus status;
   double failsafe_yaw = 0.0;  // yaw held by the command-timeout failsafe [rad]
   double land_timer = 0.0;    // land detector: time with the conditions met [s]
@@ -876,10 +880,8 @@ struct World::Impl {
       }
       total_thrust[i] = thrust;
       if (config.reality.wake) wakes[i].Record(t, Position(v), rot[i].col(2), thrust);
-      Eigen::Map<Vec3> force_w(d->xfrc_applied + 6 * v.body);
-      Eigen::Map<Vec3> torque_w(d->xfrc_applied + 6 * v.body + 3);
-      force_w = rot[i].col(2) * thrust;
-      torque_w = rot[i] * torque_b;
+      v.force_w = rot[i].col(2) * thrust;
+      v.torque_w = rot[i] * torque_b;
     }
     // 4. Wind, gusts and downwash.
     if (config.wind.enabled && config.wind.gust_std > 0.0) {
@@ -891,11 +893,16 @@ struct World::Impl {
     if (config.wind.enabled || config.downwash.enabled || config.reality.rotor_aerodynamics) {
       ApplyAero();
       for (auto& v : vehicles) {
-        Eigen::Map<Vec3> force_w(d->xfrc_applied + 6 * v.body);
-        Eigen::Map<Vec3> torque_w(d->xfrc_applied + 6 * v.body + 3);
-        force_w += v.aero_force;
-        torque_w += v.aero_torque;
+        v.force_w += v.aero_force;
+        v.torque_w += v.aero_torque;
       }
+    }
+    // Each vehicle's wrench goes straight onto its free joint's dofs: MuJoCo 2.2 would map
+    // xfrc_applied through dense 3 x nv Jacobians per body, O(N^2) per step (FreeJointForce).
+    for (int i = 0; i < n; ++i) {
+      const Vehicle& v = vehicles[i];
+      Eigen::Map<Vec<6>>(d->qfrc_applied + v.qvel) =
+          FreeJointForce(rot[i], v.com_b, v.force_w, v.torque_w);
     }
     for (auto& v : vehicles) {
       v.v_prev = Velocity(v);
@@ -954,6 +961,10 @@ World::World(const WorldConfig& config) : impl_(std::make_unique<Impl>()) {
     if (v.body < 0 || joint < 0) throw std::runtime_error("[World] " + name + " not in the model");
     v.qpos = w.m->jnt_qposadr[joint];
     v.qvel = w.m->jnt_dofadr[joint];
+    if (w.m->jnt_type[joint] != mjJNT_FREE) {
+      throw std::runtime_error("[World] " + name + "_free is not a free joint");
+    }
+    v.com_b = Vec3(w.m->body_ipos + 3 * v.body);
     const double a = spec.params.arm_length / std::sqrt(2.0);
     v.rotor_b = {Vec3(a, -a, 0), Vec3(-a, a, 0), Vec3(a, a, 0), Vec3(-a, -a, 0)};
     v.spin = {1.0, 1.0, -1.0, -1.0};
