@@ -112,18 +112,14 @@ double ThrustForThrottle(const model::ThrottlePolynomial& p, double throttle, do
   return f;
 }
 
-/// Heap entry of a queued measurement: its order keys and the pool slot holding it. The heap
-/// moves these 32-byte keys, not the 0.25 KiB measurements (a pop moves log2(queue) entries).
 struct Queued {
-  double arrival = 0.0;
-  double stamp = 0.0;
+  Measurement m;
   std::uint64_t seq = 0;
-  std::size_t slot = 0;  // index into World::Impl::pool
 };
 /// Heap order: the smallest arrival (then stamp, then sequence) on top.
 bool Later(const Queued& a, const Queued& b) {
-  if (a.arrival != b.arrival) return a.arrival > b.arrival;
-  if (a.stamp != b.stamp) return a.stamp > b.stamp;
+  if (a.m.arrival != b.m.arrival) return a.m.arrival > b.m.arrival;
+  if (a.m.stamp != b.m.stamp) return a.m.stamp > b.m.stamp;
   return a.seq > b.seq;
 }
 
@@ -361,9 +357,7 @@ struct World::Impl {
   Mat3 wind_frame = Mat3::Identity();            // (u, v, w) of the turbulence -> world
   std::mt19937_64 gust_rng;
   std::normal_distribution<double> gust_normal{0.0, 1.0};
-  std::vector<Queued> queue;            // binary heap, see Later()
-  std::vector<Measurement> pool;        // the queued measurements, by Queued::slot
-  std::vector<std::size_t> free_slots;  // slots of pool free for reuse
+  std::vector<Queued> queue;  // binary heap, see Later()
   std::uint64_t seq = 0;
   // Per-step scratch, sized at construction.
   std::vector<Mat3> rot;
@@ -584,15 +578,7 @@ struct World::Impl {
   }
 
   void Push(const Measurement& meas) {
-    std::size_t slot = pool.size();
-    if (free_slots.empty()) {
-      pool.push_back(meas);
-    } else {
-      slot = free_slots.back();
-      free_slots.pop_back();
-      pool[slot] = meas;
-    }
-    queue.push_back({meas.arrival, meas.stamp, seq++, slot});
+    queue.push_back({meas, seq++});
     std::push_heap(queue.begin(), queue.end(), Later);
   }
 
@@ -1034,10 +1020,7 @@ World::World(const WorldConfig& config) : impl_(std::make_unique<Impl>()) {
       }
     }
   }
-  const auto queue_capacity = static_cast<std::size_t>(256 * n * (n + 6));
-  w.queue.reserve(queue_capacity);
-  w.pool.reserve(queue_capacity);
-  w.free_slots.reserve(queue_capacity);
+  w.queue.reserve(static_cast<std::size_t>(256 * n * (n + 6)));
   mj_forward(w.m, w.d);
 }
 
@@ -1129,12 +1112,10 @@ void World::StepOnce() { impl_->StepOnce(); }
 
 bool World::PopMeasurement(Measurement* out) {
   auto& q = impl_->queue;
-  if (q.empty() || q.front().arrival > impl_->Time() + kTimeEps) return false;
+  if (q.empty() || q.front().m.arrival > impl_->Time() + kTimeEps) return false;
   std::pop_heap(q.begin(), q.end(), Later);
-  const std::size_t slot = q.back().slot;
+  *out = q.back().m;
   q.pop_back();
-  *out = impl_->pool[slot];
-  impl_->free_slots.push_back(slot);
   return true;
 }
 
