@@ -62,6 +62,7 @@ class TimeJumpGuard {
 struct UpdateResult {
   EkfStatus status = EkfStatus::kAccepted;  ///< kAccepted, kRejectedGated or kNumericalError
   double nis = kNaN;                        ///< normalised innovation squared y' S^-1 y [-]
+  double log_det_s = kNaN;                  ///< log det S (S = H P H' + R), for likelihoods
 };
 
 /// Joseph-form EKF update x += K y, P = (I-KH) P (I-KH)' + K R K' with innovation y
@@ -81,6 +82,7 @@ UpdateResult KalmanUpdate(const Vec<M>& y, const Mat<M, N>& H, const Mat<M, M>& 
     return r;
   }
   r.nis = y.dot(llt.solve(y));
+  r.log_det_s = 2.0 * llt.matrixLLT().diagonal().array().log().sum();
   if (!std::isfinite(r.nis)) {
     r.status = EkfStatus::kNumericalError;
     return r;

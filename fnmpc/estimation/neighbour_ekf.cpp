@@ -44,6 +44,12 @@ void NeighbourEkfConfig::Validate() const {
   Require(own_velocity_rate_hz > 0.0 && std::isfinite(own_velocity_rate_hz), "own_velocity_rate_hz",
           own_velocity_rate_hz, "must be finite and > 0");
   Require(accel_noise > 0.0, "accel_noise", accel_noise, "must be > 0");
+  Require(hover_accel_noise >= 0.0 && hover_accel_noise < accel_noise, "hover_accel_noise",
+          hover_accel_noise, "must be >= 0 (0: one model) and < accel_noise");
+  Require(hover_sojourn > 0.0 && std::isfinite(hover_sojourn), "hover_sojourn", hover_sojourn,
+          "must be finite and > 0");
+  Require(manoeuvre_sojourn > 0.0 && std::isfinite(manoeuvre_sojourn), "manoeuvre_sojourn",
+          manoeuvre_sojourn, "must be finite and > 0");
   Require(yaw_accel_noise > 0.0, "yaw_accel_noise", yaw_accel_noise, "must be > 0");
   Require(own_velocity_noise >= 0.0, "own_velocity_noise", own_velocity_noise, "must be >= 0");
   Require(initial_velocity_std > 0.0, "initial_velocity_std", initial_velocity_std, "must be > 0");
@@ -157,6 +163,10 @@ EkfCounters NeighbourEkf::counters() const {
   c.buffer_overflows = buffer_.overflows();
   c.gate_resets = s_.gate_resets;
   return c;
+}
+
+double NeighbourEkf::hover_probability() const {
+  return s_.initialized && multiple_model() ? s_.mu[kHover] : kNaN;
 }
 
 NeighbourStateVec NeighbourEkf::state() const {
@@ -302,24 +312,9 @@ EkfStatus NeighbourEkf::Process(const Measurement& m, const Vec3& own_euler,
       }));
 }
 
-void NeighbourEkf::Predict(double t, const Vec3& own_velocity, State* s) const {
-  const Vec3 v_prev = s->own_velocity.allFinite() ? s->own_velocity : own_velocity;
-  if (!s->initialized || !(t > s->time)) {
-    if (!s->initialized || !std::isfinite(s->time) || t >= s->time) {
-      s->time = std::isfinite(s->time) ? std::max(s->time, t) : t;
-      s->own_velocity = own_velocity;
-    }
-    return;
-  }
-  const double h = t - s->time;
-  const Vec3 v_avg = 0.5 * (v_prev + own_velocity);
-  s->x.segment<3>(Idx::kRelPos) += h * (s->x.segment<3>(Idx::kVel) - v_avg);
-  s->x(Idx::kYaw) = WrapAngle(s->x(Idx::kYaw) + h * s->x(Idx::kYawRate));
-  NeighbourStateCov F = NeighbourStateCov::Identity();
-  F.block<3, 3>(Idx::kRelPos, Idx::kVel) = Mat3::Identity() * h;
-  F(Idx::kYaw, Idx::kYawRate) = h;
+NeighbourStateCov NeighbourEkf::ProcessNoise(double h, double accel_noise) const {
   NeighbourStateCov Q = NeighbourStateCov::Zero();
-  const double qa = config_.accel_noise * config_.accel_noise;
+  const double qa = accel_noise * accel_noise;
   const double qy = config_.yaw_accel_noise * config_.yaw_accel_noise;
   const double qo = config_.own_velocity_noise * config_.own_velocity_noise;
   for (int i = 0; i < 3; ++i) {
@@ -332,8 +327,87 @@ void NeighbourEkf::Predict(double t, const Vec3& own_velocity, State* s) const {
   Q(Idx::kYaw, Idx::kYawRate) = qy * h * h / 2.0;
   Q(Idx::kYawRate, Idx::kYaw) = qy * h * h / 2.0;
   Q(Idx::kYawRate, Idx::kYawRate) = qy * h;
-  s->P = F * s->P * F.transpose() + Q;
+  return Q;
+}
+
+void NeighbourEkf::Combine(State* s) {
+  // Moment matching: x = sum mu_m x_m, P = sum mu_m (P_m + (x_m - x)(x_m - x)'); yaws are
+  // mixed as offsets from the manoeuvring mode's (wrapped), never across the +-pi seam.
+  const Mode& ref = s->mode[kManoeuvre];
+  if (!(s->mu[kHover] > 0.0)) {
+    s->x = ref.x;
+    s->P = ref.P;
+    return;
+  }
+  const auto offset = [&](const NeighbourStateVec& x) {
+    NeighbourStateVec d = x - ref.x;
+    d(Idx::kYaw) = WrapAngle(d(Idx::kYaw));
+    return d;
+  };
+  NeighbourStateVec mean = NeighbourStateVec::Zero();
+  for (int m = 0; m < kModes; ++m) mean += s->mu[m] * offset(s->mode[m].x);
+  NeighbourStateCov P = NeighbourStateCov::Zero();
+  for (int m = 0; m < kModes; ++m) {
+    const NeighbourStateVec d = offset(s->mode[m].x) - mean;
+    P += s->mu[m] * (s->mode[m].P + d * d.transpose());
+  }
+  s->x = ref.x + mean;
+  s->x(Idx::kYaw) = WrapAngle(s->x(Idx::kYaw));
+  s->P = P;
   Symmetrize<kN>(&s->P);
+}
+
+void NeighbourEkf::Predict(double t, const Vec3& own_velocity, State* s) const {
+  const Vec3 v_prev = s->own_velocity.allFinite() ? s->own_velocity : own_velocity;
+  if (!s->initialized || !(t > s->time)) {
+    if (!s->initialized || !std::isfinite(s->time) || t >= s->time) {
+      s->time = std::isfinite(s->time) ? std::max(s->time, t) : t;
+      s->own_velocity = own_velocity;
+    }
+    return;
+  }
+  const double h = t - s->time;
+  if (multiple_model()) {
+    // Mixing (IMM step 1) with the mode switches of a continuous-time Markov chain over h:
+    // leaving mode i with probability 1 - exp(-h / sojourn_i).
+    const double leave[kModes] = {1.0 - std::exp(-h / config_.hover_sojourn),
+                                  1.0 - std::exp(-h / config_.manoeuvre_sojourn)};
+    Mat<kModes, kModes> pi;  // pi(i, j): from i to j
+    pi << 1.0 - leave[0], leave[0], leave[1], 1.0 - leave[1];
+    const Vec<kModes> c = pi.transpose() * s->mu;
+    std::array<Mode, kModes> mixed{};
+    for (int j = 0; j < kModes; ++j) {
+      const Mode& ref = s->mode[j];
+      NeighbourStateVec mean = NeighbourStateVec::Zero();
+      std::array<NeighbourStateVec, kModes> d{};
+      for (int i = 0; i < kModes; ++i) {
+        d[i] = s->mode[i].x - ref.x;
+        d[i](Idx::kYaw) = WrapAngle(d[i](Idx::kYaw));
+        mean += (pi(i, j) * s->mu[i] / c[j]) * d[i];
+      }
+      mixed[j].x = ref.x + mean;
+      mixed[j].P.setZero();
+      for (int i = 0; i < kModes; ++i) {
+        const NeighbourStateVec e = d[i] - mean;
+        mixed[j].P += (pi(i, j) * s->mu[i] / c[j]) * (s->mode[i].P + e * e.transpose());
+      }
+    }
+    s->mode = mixed;
+    s->mu = c;
+  }
+  const Vec3 v_avg = 0.5 * (v_prev + own_velocity);
+  NeighbourStateCov F = NeighbourStateCov::Identity();
+  F.block<3, 3>(Idx::kRelPos, Idx::kVel) = Mat3::Identity() * h;
+  F(Idx::kYaw, Idx::kYawRate) = h;
+  for (int m = multiple_model() ? 0 : kManoeuvre; m < kModes; ++m) {
+    Mode& mode = s->mode[m];
+    mode.x.segment<3>(Idx::kRelPos) += h * (mode.x.segment<3>(Idx::kVel) - v_avg);
+    mode.x(Idx::kYaw) = WrapAngle(mode.x(Idx::kYaw) + h * mode.x(Idx::kYawRate));
+    mode.P = F * mode.P * F.transpose() +
+             ProcessNoise(h, m == kHover ? config_.hover_accel_noise : config_.accel_noise);
+    Symmetrize<kN>(&mode.P);
+  }
+  Combine(s);
   s->time = t;
   s->own_velocity = own_velocity;
 }
@@ -383,6 +457,18 @@ void NeighbourEkf::InitFromMeasurement(const Event& e, State* s) const {
         config_.initial_yaw_rate_std * config_.initial_yaw_rate_std;
   }
   Symmetrize<kN>(&s->P);
+  // Every mode starts from this estimate, the mode probabilities from the chain's
+  // stationary distribution (sojourn times' shares).
+  for (Mode& m : s->mode) {
+    m.x = s->x;
+    m.P = s->P;
+  }
+  if (multiple_model()) {
+    const double sum = config_.hover_sojourn + config_.manoeuvre_sojourn;
+    s->mu << config_.hover_sojourn / sum, config_.manoeuvre_sojourn / sum;
+  } else {
+    s->mu << 0.0, 1.0;
+  }
   s->initialized = true;
   s->time = e.stamp;
   s->own_velocity = e.own_velocity;
@@ -390,26 +476,66 @@ void NeighbourEkf::InitFromMeasurement(const Event& e, State* s) const {
   s->last_fused = e.stamp;
 }
 
-EkfStatus NeighbourEkf::UpdateSpherical(const Event& e, State* s) const {
+EkfStatus NeighbourEkf::UpdateSpherical(const Event& e, const Mode& prior, Mode* m,
+                                        UpdateResult* r) const {
   const RelativeObservation& o = e.m.relative;
-  const Vec<4> h = RelativeMeasurementModel(s->x, e.own_euler);
+  const Vec<4> h = RelativeMeasurementModel(prior.x, e.own_euler);
   const Vec<4> y(o.range - h(0), WrapAngle(o.bearing - h(1)), o.elevation - h(2),
                  WrapAngle(o.relative_yaw - h(3)));
-  const Mat<4, kN> H = RelativeMeasurementJacobian(s->x, e.own_euler);
-  return KalmanUpdate<kN, 4>(y, H, NoiseCovariance(e, s->x), gate_, &s->x, &s->P).status;
+  const Mat<4, kN> H = RelativeMeasurementJacobian(prior.x, e.own_euler);
+  *r = KalmanUpdate<kN, 4>(y, H, NoiseCovariance(e, prior.x), gate_, &m->x, &m->P);
+  return r->status;
 }
 
-EkfStatus NeighbourEkf::UpdateCartesian(const Event& e, State* s) const {
+EkfStatus NeighbourEkf::UpdateCartesian(const Event& e, const Mode& prior, Mode* m,
+                                        UpdateResult* r) const {
   Vec<4> z;
   Mat<4, 4> R;
   RelativeToCartesian(e.m.relative, e.own_euler, e.own_euler_cov, config_.sensors.relative, &z, &R);
   Vec<4> y;
-  y.head<3>() = z.head<3>() - s->x.segment<3>(Idx::kRelPos);
-  y(3) = WrapAngle(z(3) - s->x(Idx::kYaw));
+  y.head<3>() = z.head<3>() - prior.x.segment<3>(Idx::kRelPos);
+  y(3) = WrapAngle(z(3) - prior.x(Idx::kYaw));
   Mat<4, kN> H = Mat<4, kN>::Zero();
   H.block<3, 3>(0, Idx::kRelPos).setIdentity();
   H(3, Idx::kYaw) = 1.0;
-  return KalmanUpdate<kN, 4>(y, H, R, gate_, &s->x, &s->P).status;
+  *r = KalmanUpdate<kN, 4>(y, H, R, gate_, &m->x, &m->P);
+  return r->status;
+}
+
+// Every mode's update; IMM step 3: mode probabilities times the Gaussian likelihoods of the
+// innovations, N(y; 0, S) ~ exp(-(nis + log det S) / 2). The measurement is gated when every
+// mode gates it; a mode that gates it alone keeps its prediction and loses weight.
+EkfStatus NeighbourEkf::Update(const Event& e, State* s) const {
+  std::array<Mode, kModes> updated = s->mode;
+  std::array<UpdateResult, kModes> r{};
+  const int first = multiple_model() ? 0 : kManoeuvre;
+  bool any_accepted = false;
+  for (int m = first; m < kModes; ++m) {
+    const EkfStatus st = config_.relative_update == RelativeUpdate::kCartesian
+                             ? UpdateCartesian(e, s->mode[m], &updated[m], &r[m])
+                             : UpdateSpherical(e, s->mode[m], &updated[m], &r[m]);
+    if (st == EkfStatus::kNumericalError) return st;
+    any_accepted = any_accepted || st == EkfStatus::kAccepted;
+  }
+  if (!any_accepted) return EkfStatus::kRejectedGated;
+  if (multiple_model()) {
+    double best = -kInf;
+    for (int m = 0; m < kModes; ++m) best = std::max(best, -0.5 * (r[m].nis + r[m].log_det_s));
+    Vec<kModes> w;
+    for (int m = 0; m < kModes; ++m) {
+      w[m] = s->mu[m] * std::exp(-0.5 * (r[m].nis + r[m].log_det_s) - best);
+    }
+    const double sum = w.sum();
+    if (!(sum > 0.0) || !std::isfinite(sum)) return EkfStatus::kNumericalError;
+    // A floor keeps either mode recoverable (no probability decays to exactly zero).
+    constexpr double kMinProbability = 1e-6;
+    s->mu = (w / sum).cwiseMax(kMinProbability);
+    s->mu /= s->mu.sum();
+  }
+  for (Mode& m : updated) m.x(Idx::kYaw) = WrapAngle(m.x(Idx::kYaw));
+  s->mode = updated;
+  Combine(s);
+  return EkfStatus::kAccepted;
 }
 
 EkfStatus NeighbourEkf::Apply(const Event& e, State* s) const {
@@ -422,9 +548,7 @@ EkfStatus NeighbourEkf::Apply(const Event& e, State* s) const {
     return EkfStatus::kAccepted;
   }
   Predict(e.stamp, e.own_velocity, s);
-  const EkfStatus status = config_.relative_update == RelativeUpdate::kCartesian
-                               ? UpdateCartesian(e, s)
-                               : UpdateSpherical(e, s);
+  const EkfStatus status = Update(e, s);
   if (status == EkfStatus::kAccepted) {
     s->consecutive_gated = 0;
     s->x(Idx::kYaw) = WrapAngle(s->x(Idx::kYaw));

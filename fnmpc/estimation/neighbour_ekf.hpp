@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
+#include <array>
+
 #include "fnmpc/core/sensors.hpp"
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/estimation/ekf_math.hpp"
@@ -47,7 +49,16 @@ struct NeighbourEkfConfig {
   /// max_lag for the relative sensor's rate and own_velocity_rate_hz (what the window holds).
   int buffer_capacity = 0;
   double own_velocity_rate_hz = 20.0;  ///< rate of PredictTo calls (the control rate) [Hz]
-  double accel_noise = 0.5;            ///< neighbour acceleration white noise [m/s^2/sqrt(Hz)]
+  /// Neighbour acceleration white noise [m/s^2/sqrt(Hz)]; with hover_accel_noise > 0 that of
+  /// the manoeuvring mode.
+  double accel_noise = 0.5;
+  /// Interacting multiple model (Blom and Bar-Shalom 1988; Bar-Shalom, Li, Kirubarajan 2001,
+  /// sec. 11.6): a second constant-velocity model for a neighbour holding its position, with
+  /// this acceleration white noise [m/s^2/sqrt(Hz)]; the two models are mixed by their
+  /// measurement likelihoods. 0: one model (accel_noise only). See docs/estimation.md.
+  double hover_accel_noise = 0.05;
+  double hover_sojourn = 5.0;         ///< mean time in the hover mode [s] (mode switching)
+  double manoeuvre_sojourn = 5.0;     ///< mean time in the manoeuvring mode [s]
   double yaw_accel_noise = 0.3;       ///< neighbour yaw acceleration white noise [rad/s^2/sqrt(Hz)]
   double own_velocity_noise = 0.0;    ///< white error of the own velocity input [m/s*sqrt(s)]
   double initial_velocity_std = 1.0;  ///< neighbour velocity std at initialisation [m/s]
@@ -146,6 +157,9 @@ class NeighbourEkf {
   [[nodiscard]] EkfCounters counters() const;
   /// Configuration in use.
   [[nodiscard]] const NeighbourEkfConfig& config() const { return config_; }
+  /// Probability of the hover mode (interacting multiple model); NaN when it is off or before
+  /// initialisation.
+  [[nodiscard]] double hover_probability() const;
   /// Replay buffer entries (fixed at construction).
   [[nodiscard]] int buffer_capacity() const { return buffer_.capacity(); }
   /// Forgets the tracked vehicle and tracks `target` instead (observations of other targets
@@ -162,11 +176,20 @@ class NeighbourEkf {
     Vec3 own_velocity = Vec3::Zero();
     Mat3 own_euler_cov = Mat3::Zero();
   };
+  // One motion model of the interacting multiple model: its estimate and covariance.
+  struct Mode {
+    NeighbourStateVec x = NeighbourStateVec::Zero();
+    NeighbourStateCov P = NeighbourStateCov::Identity();
+  };
+  static constexpr int kHover = 0, kManoeuvre = 1, kModes = 2;
   struct State {
     double time = kNaN;
     bool initialized = false;
+    // The estimate: with the multiple model the probability-weighted mix of the modes.
     NeighbourStateVec x = NeighbourStateVec::Zero();
     NeighbourStateCov P = NeighbourStateCov::Identity();
+    std::array<Mode, kModes> mode{};
+    Vec<kModes> mu = Vec<kModes>::Zero();      // mode probabilities
     Vec3 own_velocity = Vec3::Constant(kNaN);  // own velocity at `time`
     int consecutive_gated = 0;
     std::int64_t gate_resets = 0;
@@ -177,8 +200,15 @@ class NeighbourEkf {
   void Predict(double t, const Vec3& own_velocity, State* s) const;
   void InitFromMeasurement(const Event& e, State* s) const;
   [[nodiscard]] Mat<4, 4> NoiseCovariance(const Event& e, const NeighbourStateVec& x) const;
-  EkfStatus UpdateSpherical(const Event& e, State* s) const;
-  EkfStatus UpdateCartesian(const Event& e, State* s) const;
+  EkfStatus UpdateSpherical(const Event& e, const Mode& prior, Mode* m, UpdateResult* r) const;
+  EkfStatus UpdateCartesian(const Event& e, const Mode& prior, Mode* m, UpdateResult* r) const;
+  // The update of every mode, the mode probabilities from their likelihoods.
+  EkfStatus Update(const Event& e, State* s) const;
+  // The process noise of one mode over h [s].
+  [[nodiscard]] NeighbourStateCov ProcessNoise(double h, double accel_noise) const;
+  // s->x, s->P from the modes (the moment-matched mix).
+  static void Combine(State* s);
+  [[nodiscard]] bool multiple_model() const { return config_.hover_accel_noise > 0.0; }
   // Predicts a copy to t (capped at max_extrapolation); *capped tells whether it was.
   State PredictedCopy(double t, const Vec3& own_velocity, bool* capped) const;
   // See VehicleEkf::TimeJumpRejected; the re-anchor forgets the neighbour.

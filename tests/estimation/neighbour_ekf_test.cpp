@@ -5,8 +5,10 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <random>
+#include <stdexcept>
 
 #include "synthetic_truth.hpp"
 
@@ -54,6 +56,7 @@ NeighbourEkfConfig TestConfig() {
   c.observer = 0;
   c.target = 2;
   c.accel_noise = 0.3;
+  c.hover_accel_noise = 0.0;  // one model: the truth below is drawn from it
   c.yaw_accel_noise = 0.2;
   c.initial_velocity_std = 0.5;
   c.initial_yaw_rate_std = 0.3;
@@ -373,6 +376,135 @@ TEST(NeighbourEkfTest, OutliersAndInvalidMeasurementsRejectedAndCounted) {
   EXPECT_EQ(c.Get(EkfStatus::kRejectedNonFinite, SensorKind::kRelative), 2);
   EXPECT_EQ(c.Get(EkfStatus::kRejectedInvalid, SensorKind::kRelative), 1);
   EXPECT_LT(max_err, max_err_clean + 0.01);
+}
+
+// Neighbour at (2, -1.5, 0.3) m from an observer at rest, holding still until t = 10 s, then
+// flying a quintic leg of 1.8 m along x in 4 s (peak acceleration 0.65 m/s^2, the
+// triangle's longest leg), then holding again until 22 s. Relative sensor with the default
+// noise at 50 Hz, PredictTo at 20 Hz (the control rate). Velocity and position errors per
+// PredictTo sample, and the hover probability.
+struct HoverLegRun {
+  double hover_vel_rms = 0.0;    // t in [4, 10) s
+  double hover_pos_rms = 0.0;    // t in [4, 10) s
+  double leg_max_pos_err = 0.0;  // t in [10, 16) s
+  double leg_max_vel_err = 0.0;  // t in [10, 16) s
+  double min_hover_probability_leg = 1.0;
+  double hover_probability_end = kNaN;
+};
+
+HoverLegRun FlyHoverLeg(const NeighbourEkfConfig& cfg, std::uint32_t seed) {
+  constexpr double kDt = 0.01, kLegStart = 10.0, kLeg = 4.0, kLength = 1.8, kEnd = 22.0;
+  const Vec3 start(2.0, -1.5, 0.3);
+  const SensorSpec& spec = cfg.sensors.relative;
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> nd(0.0, 1.0);
+  NeighbourEkf ekf(cfg);
+  HoverLegRun out;
+  double hv = 0, hp = 0;
+  int nh = 0;
+  for (int k = 0; k * kDt <= kEnd + 1e-9; ++k) {
+    const double t = k * kDt;
+    const double s = std::clamp((t - kLegStart) / kLeg, 0.0, 1.0);
+    const double pos = kLength * s * s * s * (10.0 - 15.0 * s + 6.0 * s * s);
+    const double vel = kLength / kLeg * 30.0 * s * s * (1.0 - s) * (1.0 - s);
+    const Vec3 p = start + Vec3(pos, 0.0, 0.0), v(vel, 0.0, 0.0);
+    if (k % 2 == 0) {  // 50 Hz
+      Measurement m;
+      m.kind = SensorKind::kRelative;
+      m.vehicle = 0;
+      m.stamp = t;
+      m.relative = testing::TrueRelative(Vec3::Zero(), Vec3::Zero(), p, 0.0, 2);
+      RelativeObservation& o = m.relative;
+      o.range += spec.noise.x() * (1.0 + spec.range_noise_growth * o.range) * nd(rng);
+      o.bearing = WrapAngle(o.bearing + spec.noise.y() * nd(rng));
+      o.elevation += spec.noise.z() * nd(rng);
+      o.relative_yaw = WrapAngle(o.relative_yaw + spec.noise2.x() * nd(rng));
+      ekf.Process(m, Vec3::Zero(), Vec3::Zero());
+    }
+    if (k % 5 != 1) continue;  // 20 Hz
+    ekf.PredictTo(t, Vec3::Zero());
+    const NeighbourStateVec x = ekf.state();
+    const double ep = (x.head<3>() - p).norm(), ev = (x.segment<3>(Idx::kVel) - v).norm();
+    if (t >= 4.0 && t < kLegStart) {
+      hv += ev * ev;
+      hp += ep * ep;
+      ++nh;
+    }
+    if (t >= kLegStart && t < kLegStart + 6.0) {
+      out.leg_max_pos_err = std::max(out.leg_max_pos_err, ep);
+      out.leg_max_vel_err = std::max(out.leg_max_vel_err, ev);
+      if (t < kLegStart + kLeg) {
+        out.min_hover_probability_leg =
+            std::min(out.min_hover_probability_leg, ekf.hover_probability());
+      }
+    }
+    out.hover_probability_end = ekf.hover_probability();
+  }
+  out.hover_vel_rms = std::sqrt(hv / nh);
+  out.hover_pos_rms = std::sqrt(hp / nh);
+  return out;
+}
+
+// hover_probability() of an initialised filter.
+double FlyHoverLegProbability(const NeighbourEkfConfig& cfg) {
+  NeighbourEkf ekf(cfg);
+  Measurement m;
+  m.kind = SensorKind::kRelative;
+  m.vehicle = 0;
+  m.stamp = 0.0;
+  m.relative = testing::TrueRelative(Vec3::Zero(), Vec3::Zero(), Vec3(2.0, 0.0, 0.0), 0.0, 2);
+  ekf.Process(m, Vec3::Zero(), Vec3::Zero());
+  return ekf.hover_probability();
+}
+
+TEST(NeighbourEkfTest, HoverModelQuietsTheVelocityAndFollowsALeg) {
+  // Given the default filter (two modes) and the same filter with one model (the former
+  // default), on the same 5 noise seeds of a neighbour that holds, flies a leg, holds
+  NeighbourEkfConfig imm;
+  imm.observer = 0;
+  imm.target = 2;
+  imm.own_velocity_rate_hz = 20.0;
+  ASSERT_GT(imm.hover_accel_noise, 0.0);
+  NeighbourEkfConfig single = imm;
+  single.hover_accel_noise = 0.0;
+  for (std::uint32_t seed = 1; seed <= 5; ++seed) {
+    // When both filter the same measurements
+    const HoverLegRun a = FlyHoverLeg(imm, seed), b = FlyHoverLeg(single, seed);
+    std::printf(
+        "[neighbour imm] seed %u: hover velocity rms %.4f m/s (one model %.4f), position %.4f m "
+        "(%.4f); leg max error %.4f m, %.3f m/s (one model %.4f m, %.3f m/s); hover "
+        "probability min in the leg %.3f, at the end %.3f\n",
+        seed, a.hover_vel_rms, b.hover_vel_rms, a.hover_pos_rms, b.hover_pos_rms, a.leg_max_pos_err,
+        a.leg_max_vel_err, b.leg_max_pos_err, b.leg_max_vel_err, a.min_hover_probability_leg,
+        a.hover_probability_end);
+    // Then at hover the velocity noise is a fraction of the one model's,
+    EXPECT_LT(a.hover_vel_rms, 0.4 * b.hover_vel_rms);
+    EXPECT_LT(a.hover_vel_rms, 0.05);
+    EXPECT_LT(a.hover_pos_rms, b.hover_pos_rms);
+    // during the leg the manoeuvring mode takes over and the errors stay as bounded as the
+    // one model's,
+    EXPECT_LT(a.min_hover_probability_leg, 0.1);
+    EXPECT_LT(a.leg_max_pos_err, 0.06);
+    EXPECT_LT(a.leg_max_pos_err, 1.25 * b.leg_max_pos_err);
+    EXPECT_LT(a.leg_max_vel_err, 1.25 * b.leg_max_vel_err);
+    // and the hover mode returns in the hold after it.
+    EXPECT_GT(a.hover_probability_end, 0.9);
+    EXPECT_TRUE(std::isnan(FlyHoverLegProbability(single)));
+  }
+}
+
+TEST(NeighbourEkfTest, MultipleModelSettingsValidated) {
+  NeighbourEkfConfig c;
+  c.hover_accel_noise = c.accel_noise;  // not a quieter mode
+  EXPECT_THROW(NeighbourEkf{c}, std::invalid_argument);
+  c.hover_accel_noise = -0.1;
+  EXPECT_THROW(NeighbourEkf{c}, std::invalid_argument);
+  c = NeighbourEkfConfig{};
+  c.hover_sojourn = 0.0;
+  EXPECT_THROW(NeighbourEkf{c}, std::invalid_argument);
+  c = NeighbourEkfConfig{};
+  c.manoeuvre_sojourn = kInf;
+  EXPECT_THROW(NeighbourEkf{c}, std::invalid_argument);
 }
 
 }  // namespace
