@@ -321,7 +321,10 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
         row.formation_error = ferr;
         row.steady = steady;
         row.estimator_rejections = rej;
-        if (ctrl[i]) row.estimated_force = ctrl[i]->config().params.mass * e.disturbance;
+        // m (d + the wake model's part): with compensation wake the estimator's d is the rest.
+        if (ctrl[i]) {
+          row.estimated_force = ctrl[i]->config().params.mass * (e.disturbance + out.wake);
+        }
         csv[i].Write(row);
       }
       if (options.progress && t >= next_progress) {

@@ -329,9 +329,9 @@ bool VehicleEkf::CommandFresh(double t, const State& s) const {
 }
 
 EkfStatus VehicleEkf::SetCommand(double t, double thrust, double roll_ref, double pitch_ref,
-                                 double yaw_ref) {
+                                 double yaw_ref, const Vec3& known_acceleration) {
   if (!std::isfinite(t) || !std::isfinite(thrust) || !std::isfinite(roll_ref) ||
-      !std::isfinite(pitch_ref) || !std::isfinite(yaw_ref)) {
+      !std::isfinite(pitch_ref) || !std::isfinite(yaw_ref) || !known_acceleration.allFinite()) {
     ++counters_.commands_rejected;
     return EkfStatus::kRejectedNonFinite;
   }
@@ -343,7 +343,7 @@ EkfStatus VehicleEkf::SetCommand(double t, double thrust, double roll_ref, doubl
   e.stamp = t;
   e.order = 0;
   e.is_command = true;
-  e.command = {thrust, roll_ref, pitch_ref, yaw_ref};
+  e.command = {thrust, roll_ref, pitch_ref, yaw_ref, known_acceleration};
   const EkfStatus st = buffer_.Submit(
       e, &s_, [this](const Event& ev, State* s) { return Apply(ev, s); },
       [this](const Event& ev, EkfStatus from, EkfStatus to) {
@@ -555,7 +555,7 @@ EkfStatus VehicleEkf::ApplyMeasurement(const Measurement& m, State* s) const {
 void VehicleEkf::UpdateDisturbance(const Measurement& m, State* s) const {
   const SensorsConfig& sc = config_.sensors;
   const Vec3 y = UnexplainedAcceleration(s->x, m.accel, s->command.thrust, vehicle_) -
-                 s->x.segment<3>(Idx::kDisturbance);
+                 s->command.known_acceleration - s->x.segment<3>(Idx::kDisturbance);
   const double model_var =
       config_.command_accel_noise * config_.command_accel_noise * sc.imu.rate_hz;
   const Mat3 R = (sc.imu.noise.array().square() + model_var).matrix().asDiagonal();
@@ -677,6 +677,7 @@ void VehicleEkf::PredictStep(double h, State* s) const {
     Q.block<3, 3>(Idx::kEuler, Idx::kEuler) += T * qg.asDiagonal() * T.transpose() * h;
   } else if (config_.motion_model == MotionModel::kCommand) {
     double thrust = vehicle_.mass * kGravity / vehicle_.bias.thrust_scale;
+    VehicleStateVec known = VehicleStateVec::Zero();  // SetCommand's known acceleration on v'
     const Vec3 e = s->x.segment<3>(Idx::kEuler);
     // Without a fresh command: hover thrust and hold the current attitude.
     Vec3 refs(e.x() / vehicle_.attitude_gain.x() - vehicle_.bias.roll,
@@ -685,10 +686,11 @@ void VehicleEkf::PredictStep(double h, State* s) const {
     if (CommandFresh(s->time, *s)) {
       thrust = s->command.thrust;
       refs = Vec3(s->command.roll, s->command.pitch, s->command.yaw);
+      known.segment<3>(Idx::kVel) = s->command.known_acceleration;
     }
     A = CommandFlowJacobian(s->x, thrust, refs, vehicle_);
-    x_mid = s->x + 0.5 * h * CommandFlow(s->x, thrust, refs, vehicle_);
-    x_new = s->x + h * CommandFlow(x_mid, thrust, refs, vehicle_);
+    x_mid = s->x + 0.5 * h * (CommandFlow(s->x, thrust, refs, vehicle_) + known);
+    x_new = s->x + h * (CommandFlow(x_mid, thrust, refs, vehicle_) + known);
     add_accel_noise(config_.command_accel_noise * config_.command_accel_noise);
     Q.diagonal().segment<3>(Idx::kEuler).array() +=
         config_.command_attitude_noise * config_.command_attitude_noise * h;

@@ -178,7 +178,11 @@ class VehicleEkf {
 
   /// Records the command valid from time t [s]: collective thrust [N] and attitude
   /// references [rad]. Used by the command motion model and by the mode logic.
-  EkfStatus SetCommand(double t, double thrust, double roll_ref, double pitch_ref, double yaw_ref);
+  /// `known_acceleration` [m/s^2, {n}]: the part of the external acceleration the controller
+  /// models itself (its wake model, issue #17 item 2), held with the command: the thrust model
+  /// then explains it, and d estimates only the rest.
+  EkfStatus SetCommand(double t, double thrust, double roll_ref, double pitch_ref, double yaw_ref,
+                       const Vec3& known_acceleration = Vec3::Zero());
 
   /// Fuses one measurement (predicting to its stamp, replaying if it is late).
   EkfStatus Process(const Measurement& m);
@@ -205,6 +209,7 @@ class VehicleEkf {
  private:
   struct Command {
     double thrust = kNaN, roll = kNaN, pitch = kNaN, yaw = kNaN;
+    Vec3 known_acceleration = Vec3::Zero();  // [m/s^2, {n}], see SetCommand
   };
   struct Event {
     double stamp = kNaN;

@@ -8,17 +8,17 @@
 namespace fnmpc::formation {
 
 /// How much of the aerodynamic interaction the NMPC compensates (issue 17's ablation levels;
-/// each includes the ones before it). Only none and observer exist; wake and cooperative are
-/// named so that a file or the CLI asking for them gets "not implemented yet".
+/// each includes the ones before it). none, observer and wake exist; cooperative is named so
+/// that a file or the CLI asking for it gets "not implemented yet".
 enum class Compensation : int {
   kNone = 0,         ///< the reference work's controller: no disturbance in the prediction
   kObserver = 1,     ///< the own estimator's external acceleration d as a stage parameter
-  kWake = 2,         ///< (planned) plus the neighbours' predicted wakes
+  kWake = 2,         ///< plus the neighbours' predicted wakes (follower; model::WakeForceModel)
   kCooperative = 3,  ///< (planned) plus shared plans and disturbance estimates
 };
 inline constexpr const char* kCompensationNames[] = {"none", "observer", "wake", "cooperative"};
-/// The names of Compensation, of which the first two are implemented.
-inline constexpr Choice kCompensationChoice{kCompensationNames, 4, 2};
+/// The names of Compensation, of which the first three are implemented.
+inline constexpr Choice kCompensationChoice{kCompensationNames, 4, 3};
 inline const char* ToString(Compensation c) { return kCompensationNames[static_cast<int>(c)]; }
 
 /// The settings every vehicle's controller of a formation shares: what a scenario sets
@@ -54,8 +54,11 @@ struct ControllerSettings {
     a->VisitChoice("controller.compensation", &compensation, kCompensationChoice,
                    "disturbance compensation: none = the reference work's NMPC; observer = the "
                    "own estimator's external acceleration (VehicleEkf state d) enters the "
-                   "prediction as a constant stage parameter (offset-free NMPC). `fnmpc run "
-                   "--compensation` overrides it");
+                   "prediction as a constant stage parameter (offset-free NMPC); wake = observer "
+                   "plus, in a follower's prediction, the wakes of its first 4 active formation "
+                   "neighbours at their predicted relative positions and hover thrust (smooth "
+                   "round-jet model, docs/safety.md), the observer's d then carrying only the "
+                   "rest. `fnmpc run --compensation` overrides it");
     a->Visit("controller.use_throttle", &use_throttle, AnyValue(),
              "true: command the collective throttle from the thrust and the measured battery "
              "voltage; false: the thrust");

@@ -9,6 +9,7 @@
 #include "fnmpc/core/stopwatch.hpp"
 #include "fnmpc/formation/throttle_map.hpp"
 #include "fnmpc/ocp/problem_extensions.hpp"
+#include "fnmpc/ocp/wake_extension.hpp"
 #include "fnmpc/rti/quadrotor_ocp.hpp"
 
 namespace fnmpc::formation {
@@ -97,6 +98,26 @@ struct NeighbourState {
 
 /// Obstacle slots of the controllers' OCPs (the nearest sensed vehicles).
 constexpr int kObstacleSlots = 4;
+/// Wake slots of the follower's OCP (Compensation::kWake): its first active formation
+/// neighbours in configuration order.
+constexpr int kWakeSlots = 4;
+using WakeSlots = std::array<int, kWakeSlots>;
+
+/// The neighbours whose wakes a follower predicts (Compensation::kWake): the first kWakeSlots
+/// active ones of the first `count` (configuration order); -1 marks an unused slot.
+WakeSlots WakeSources(const std::array<bool, kMaxNeighbours>& active, int count) {
+  WakeSlots source;
+  source.fill(-1);
+  for (int j = 0, o = 0; j < count && o < kWakeSlots; ++j) {
+    if (active[j]) source[o++] = j;
+  }
+  return source;
+}
+
+/// Thrust [N] a follower assumes for a neighbour whose wake it predicts: the hover thrust of
+/// its own vehicle file (the neighbour's thrust is not measured, and its constant-velocity
+/// estimate has no acceleration to infer it from; cooperative mode would share it).
+double NeighbourThrust(const model::VehicleParams& own) { return own.mass * kGravity; }
 
 /// One NMPC step's inputs: own estimate and neighbour estimates.
 struct NmpcInput {
@@ -108,8 +129,12 @@ struct NmpcInput {
   std::array<bool, kMaxNeighbours> active{};  // follower: neighbour j in the cost
   Vec3 last_command = Vec3::Zero();           // (thrust, roll, pitch) last applied
   // External acceleration held over the horizon ({n} = {m} axes) [m/s^2]: the own
-  // estimator's d with Compensation::kObserver, else zero.
+  // estimator's d from Compensation::kObserver on, else zero. With Compensation::kWake the
+  // estimator was told the wake model's part (VehicleEkf::SetCommand), so d is the rest.
   Vec3 disturbance = Vec3::Zero();
+  // Compensation::kWake, follower: the wake model's acceleration at the current relative
+  // positions (PredictedWake), else zero [m/s^2].
+  Vec3 wake = Vec3::Zero();
   // Collision avoidance: the nearest sensed vehicles, relative position (p_o - p_self) and
   // velocity; slots beyond `obstacles` are unused.
   std::array<Vec3, kObstacleSlots> obstacle_rel{}, obstacle_vel{};
@@ -314,7 +339,7 @@ class LeaderCore final : public NmpcCore {
   }
   void References(const NmpcInput& in) {
     const double ts = c_.rti.sample_time;
-    const bool target = c_.compensation == Compensation::kObserver;
+    const bool target = c_.compensation >= Compensation::kObserver;
     const HoverTarget hover(in.disturbance, yaw_ref_, solver_.problem().base.params);
     Vec3 p, v;
     for (int k = 0; k <= solver_.horizon(); ++k) {
@@ -360,15 +385,17 @@ class FollowerCore final : public NmpcCore {
  public:
   using Reduced = ocp::ReducedFollowerProblem<1>;
   using Base = ocp::WithObstacles<Reduced, kObstacleSlots>;
-  using Problem = ocp::WithAcceleration<ocp::WithInputRate<Base>>;
+  using Wake = ocp::WithWake<ocp::WithInputRate<Base>, kWakeSlots>;
+  using Problem = ocp::WithAcceleration<Wake>;
   using Solver = rti::RtiSolver<Problem>;
   using X = Solver::X;
   static constexpr int kNyR = Reduced::kNy, kNyNR = Reduced::kNyN;
   explicit FollowerCore(const ControllerConfig& c)
       : c_(c),
-        solver_(Problem(ocp::WithInputRate<Base>(
-                    Base(Reduced{model::AttitudeModelParams::From(c.params), c.frame},
-                         c.safety.collision_radius))),
+        solver_(Problem(Wake(ocp::WithInputRate<Base>(
+                                 Base(Reduced{model::AttitudeModelParams::From(c.params), c.frame},
+                                      c.safety.collision_radius)),
+                             model::WakeForceModel(c.params))),
                 c.rti, rti::quadrotor::ReducedFollowerLayout(/*soft_velocity=*/true)) {
     const NmpcWeights& wt = c.weights;
     w_.setZero();
@@ -406,7 +433,8 @@ class FollowerCore final : public NmpcCore {
     }
     first_ = false;
     ActiveNeighbours(in);
-    if (c_.compensation == Compensation::kObserver) Targets(in.disturbance);
+    // The hover target under the whole predicted push now: d and the wake model's part.
+    if (c_.compensation >= Compensation::kObserver) Targets(in.disturbance + in.wake);
     x0_ = Stage(in);
     SolveStep(&solver_, x0_, in.forced_failure, &out);
     return out;
@@ -456,7 +484,7 @@ class FollowerCore final : public NmpcCore {
 
   // The hover target under d in the input and attitude rows of every stage (HoverTarget).
   void Targets(const Vec3& d) {
-    const HoverTarget hover(d, yaw_ref_, solver_.problem().base.params);
+    const HoverTarget hover(d, yaw_ref_, solver_.problem().base.base.params);
     for (int k = 0; k < solver_.horizon(); ++k) {
       hover.WriteStage(&yref_[k], c_.params.mass);
       solver_.SetReference(k, yref_[k]);
@@ -506,9 +534,25 @@ class FollowerCore final : public NmpcCore {
       rel_[j] = in.neighbours[j].rel_pos;
       vel_[j] = in.neighbours[j].vel;
     }
+    // Compensation::kWake: the wakes of WakeSources at their predictions (Predict) and
+    // NeighbourThrust; d is then the estimator's rest beyond the model (NmpcInput).
+    WakeSlots source;
+    source.fill(-1);
+    if (c_.compensation >= Compensation::kWake) source = WakeSources(active_, nn_);
+    const double neighbour_thrust = NeighbourThrust(c_.params);
     for (int k = 0; k <= solver_.horizon(); ++k) {
       Solver::P& p = params_[k];
       p[0] = yaw_ref_;
+      for (int o = 0; o < kWakeSlots; ++o) {
+        if (source[o] < 0) {
+          Wake::SetUnused(o, &p);
+          continue;
+        }
+        Vec3 rel, vel;
+        Predict(source[o], k, &rel, &vel);
+        p.segment<3>(Wake::ParamSource(o)) = rel;
+        p[Wake::ParamThrust(o)] = neighbour_thrust;
+      }
       Vec3 lo = Vec3::Constant(-kInf), hi = Vec3::Constant(kInf);
       // With no active neighbour: zero, finite and unweighted (keeps the linearisation finite).
       Vec3 rel_mean = Vec3::Zero(), vel_mean = Vec3::Zero();
@@ -656,6 +700,7 @@ bool Rejected(estimation::EkfStatus s) {
 VehicleController::VehicleController(const ControllerConfig& config)
     : config_((config.Validate(), config)),
       ekf_(OwnEkfConfig(config), config.params),
+      wake_(config.params),
       pid_(config.pid, config.params.mass),
       ladder_(config.safety.recovery) {
   for (const NeighbourTarget& n : config_.neighbours) {
@@ -1009,7 +1054,9 @@ ControlOutput VehicleController::Control(double t) {
   UpdateNeighbourPresence(t);
   CheckVelocityConsistency(t);
   const ControlOutput out = Step(t);
-  if (ekf_.initialized()) ekf_.SetCommand(t, out.thrust, out.roll, out.pitch, out.yaw);
+  // The wake model's part of the external acceleration (Compensation::kWake) is known to the
+  // estimator, whose d then carries the rest only (no double counting in the prediction).
+  if (ekf_.initialized()) ekf_.SetCommand(t, out.thrust, out.roll, out.pitch, out.yaw, out.wake);
   return out;
 }
 
@@ -1269,10 +1316,22 @@ ControlOutput VehicleController::Step(double t) {
       in.last_command = last_command_.allFinite() ? last_command_
                                                   : Vec3(config_.params.mass * kGravity, 0.0, 0.0);
       // A non-finite estimate of d never enters the prediction (zero: today's controller).
-      if (config_.compensation == Compensation::kObserver && own.disturbance.allFinite()) {
+      if (config_.compensation >= Compensation::kObserver && own.disturbance.allFinite()) {
         in.disturbance = own.disturbance;
       }
-      out.disturbance = in.disturbance;
+      if (config_.compensation >= Compensation::kWake && !config_.leader) {
+        const WakeSlots source =
+            WakeSources(in.active, static_cast<int>(config_.neighbours.size()));
+        for (const int j : source) {
+          if (j >= 0) {
+            in.wake.z() +=
+                wake_.Acceleration(-in.neighbours[j].rel_pos, NeighbourThrust(config_.params));
+          }
+        }
+        if (!in.wake.allFinite()) in.wake.setZero();
+      }
+      out.wake = in.wake;
+      out.disturbance = in.disturbance + in.wake;
       NearestObstacles(t, &in);
       // Fault injection (SafetyConfig::injected_failure_rate, 0 = off).
       in.forced_failure =

@@ -18,6 +18,7 @@
 #include "fnmpc/formation/takeoff_pid.hpp"
 #include "fnmpc/formation/trajectory.hpp"
 #include "fnmpc/model/vehicle_params.hpp"
+#include "fnmpc/model/wake_force.hpp"
 #include "fnmpc/ocp/problems.hpp"
 #include "fnmpc/rti/rti_solver.hpp"
 
@@ -94,9 +95,13 @@ struct ControlOutput {
   RecoveryAction recovery = RecoveryAction::kNone;
   RecoveryReason recovery_reason = RecoveryReason::kNone;
   int active_neighbours = 0;  ///< follower: neighbours in the cost at this step
-  /// External acceleration the NMPC predicted with ({n} axes) [m/s^2]; zero with
-  /// Compensation::kNone, NaN outside the NMPC.
+  /// External acceleration the NMPC predicted with at the current time ({n} axes) [m/s^2]:
+  /// the estimator's d plus `wake`; zero with Compensation::kNone, NaN outside the NMPC.
   Vec3 disturbance = Vec3::Constant(kNaN);
+  /// Compensation::kWake, follower: the wake model's part of `disturbance` (the neighbours'
+  /// wakes at the current relative positions, model::WakeForceModel), passed to the estimator
+  /// as known; zero otherwise [m/s^2].
+  Vec3 wake = Vec3::Zero();
   Vec3 reference = Vec3::Constant(kNaN);  ///< leader position reference [m]
   double voltage = kNaN;                  ///< filtered measured battery voltage [V]
 };
@@ -218,6 +223,7 @@ class VehicleController {
   Track* TrackOf(int vehicle, double stamp, double range);
   bool TrackLost(const Track& k, double t) const;
   std::unique_ptr<NmpcCore> nmpc_;
+  model::WakeForceModel wake_;  // Compensation::kWake (follower): the neighbours' wakes
   TakeoffPid pid_;
   FlightPhase phase_ = FlightPhase::kIdle;
   double phase_start_ = 0.0;

@@ -254,7 +254,8 @@ TEST(ScenarioSettingsDocTest, CompensationAcceptsImplementedLevelsOnly) {
             formation::Compensation::kNone);
   EXPECT_EQ(with("observer").compensation, formation::Compensation::kObserver);
   EXPECT_EQ(with("none").compensation, formation::Compensation::kNone);
-  for (const std::string level : {"wake", "cooperative", "Observer"}) {
+  EXPECT_EQ(with("wake").compensation, formation::Compensation::kWake);
+  for (const std::string level : {"cooperative", "Observer"}) {
     try {
       with(level);
       FAIL() << level << " was accepted";
@@ -262,7 +263,7 @@ TEST(ScenarioSettingsDocTest, CompensationAcceptsImplementedLevelsOnly) {
       const std::string what = e.what();
       EXPECT_NE(what.find("s.yaml:"), std::string::npos) << what;
       EXPECT_NE(what.find("key 'controller.compensation'"), std::string::npos) << what;
-      EXPECT_NE(what.find(level == "Observer" ? "must be one of none, observer"
+      EXPECT_NE(what.find(level == "Observer" ? "must be one of none, observer, wake"
                                               : "is not implemented yet"),
                 std::string::npos)
           << what;

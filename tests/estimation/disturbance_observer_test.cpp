@@ -40,8 +40,8 @@ struct Sample {
 // order. `thrust_offset` is added to the command the filter is told (a thrust-model error
 // that d must absorb). Returns the estimate every 0.05 s.
 std::vector<Sample> Fly(const std::function<Vec3(double)>& d_of_t, double duration,
-                        std::uint32_t seed, const VehicleEkfConfig& cfg,
-                        double thrust_offset = 0.0) {
+                        std::uint32_t seed, const VehicleEkfConfig& cfg, double thrust_offset = 0.0,
+                        const std::function<Vec3(double)>& known_of_t = nullptr) {
   const model::VehicleParams vp;
   std::mt19937 rng(seed);
   std::normal_distribution<double> n01(0.0, 1.0);
@@ -60,7 +60,8 @@ std::vector<Sample> Fly(const std::function<Vec3(double)>& d_of_t, double durati
     const double t = i * h;
     const Vec3 d = d_of_t(t);
     if (i % command_every == 0) {
-      ekf.SetCommand(t, vp.mass * kGravity + thrust_offset, 0.0, 0.0, 0.0);
+      ekf.SetCommand(t, vp.mass * kGravity + thrust_offset, 0.0, 0.0, 0.0,
+                     known_of_t ? known_of_t(t) : Vec3(Vec3::Zero()));
     }
     if (i % mocap_every == 0) {
       Measurement m;
@@ -118,6 +119,28 @@ TEST(DisturbanceObserverTest, StepForceIsObservedAndConverges) {
   EXPECT_LT(before, 0.05);
   EXPECT_LT(reached_63, 1.2 * tau + 0.05);
   EXPECT_LT(after, 0.05);
+}
+
+TEST(DisturbanceObserverTest, KnownAccelerationIsNotEstimatedAgain) {
+  // Given the step push of a wake from t = 2 s, of which the controller's wake model knows
+  // 1.2 m/s^2 down (told with each command, as Compensation::kWake does)
+  const VehicleEkfConfig cfg = FlyingConfig();
+  const Vec3 step(0.8, -0.5, -1.5), known(0.0, 0.0, -1.2);
+  const auto push = [&](double t) { return t < 2.0 ? Vec3(Vec3::Zero()) : step; };
+  const auto model = [&](double t) { return t < 2.0 ? Vec3(Vec3::Zero()) : known; };
+  const auto runs = Fly(push, 8.0, 3, cfg, 0.0, model);
+  const double tau = DisturbanceTimeConstant(cfg);
+  double after = 0.0;
+  for (const Sample& s : runs) {
+    ASSERT_TRUE(s.full.valid) << s.t;
+    if (s.t >= 2.0 + 6.0 * tau) after = std::max(after, (s.estimate - (s.truth - known)).norm());
+  }
+  // Then d converges to the rest only (no double counting in the prediction)
+  EXPECT_LT(after, 0.05);
+  // And a non-finite known acceleration is refused with its command
+  VehicleEkf ekf(cfg, model::VehicleParams{});
+  EXPECT_EQ(ekf.SetCommand(0.0, 13.0, 0.0, 0.0, 0.0, Vec3(kNaN, 0.0, 0.0)),
+            EkfStatus::kRejectedNonFinite);
 }
 
 TEST(DisturbanceObserverTest, RampIsTrackedWithTheRandomWalksLag) {
