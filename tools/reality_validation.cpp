@@ -27,6 +27,7 @@
 #include "fnmpc/sim/rotor_aero.hpp"
 #include "fnmpc/sim/wake.hpp"
 #include "fnmpc/sim/world.hpp"
+#include "tools/reality_validation_scene.hpp"
 
 namespace {
 
@@ -81,33 +82,8 @@ struct ForceStats {
 };
 
 ForceStats ForceBelow(const fnmpc::model::VehicleParams& p, double dz, bool reality) {
-  sim::WorldConfig c;
-  for (int i = 0; i < 2; ++i) {
-    sim::VehicleSpec v;
-    v.params = p;
-    for (fnmpc::SensorSpec* s : {&v.sensors.mocap, &v.sensors.imu, &v.sensors.optical_flow,
-                                 &v.sensors.compass, &v.sensors.battery, &v.sensors.relative}) {
-      s->enabled = false;
-    }
-    v.initial_throttle = p.throttle.Throttle(p.mass * fnmpc::kGravity / 4.0, 16.8);
-    c.vehicles.push_back(v);
-  }
-  c.ground = false;
-  c.battery.fixed_voltage = true;
-  c.downwash.enabled = true;
-  c.reality.wake = reality;
-  c.reality.rotor_aerodynamics = reality;
-  const Vec3 upper(0.0, 0.0, 20.0), lower(0.0, 0.0, 20.0 - dz);
-  c.vehicles[0].position = upper;
-  c.vehicles[1].position = lower;
-  sim::World w(c);
-  std::vector<Vec3> f;
-  for (int k = 0; k < 12000; ++k) {
-    w.SetPose(0, upper, Vec3::Zero());
-    w.SetPose(1, lower, Vec3::Zero());
-    w.StepOnce();
-    if (k >= 2000 && k % 5 == 0) f.push_back(w.GetTrueState(1).aero_force);
-  }
+  const std::vector<Vec3> f =
+      fnmpc::validation::ForceBelowHoveringVehicle(p, dz, reality, 12000, 2000, 5);
   ForceStats st;
   for (const Vec3& x : f) st.mean += x / static_cast<double>(f.size());
   for (const Vec3& x : f) st.sd += (x - st.mean).cwiseAbs2() / static_cast<double>(f.size());

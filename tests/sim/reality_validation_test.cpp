@@ -19,6 +19,7 @@
 #include "fnmpc/sim/rotor_aero.hpp"
 #include "fnmpc/sim/wake.hpp"
 #include "fnmpc/sim/world.hpp"
+#include "tools/reality_validation_scene.hpp"
 
 namespace fnmpc::sim {
 namespace {
@@ -178,37 +179,12 @@ TEST(RealityValidationTest, WakeBelowHoveringQuadrotorAgainstBauersfeldFarFieldF
 /// another, both at the hover throttle, reality on (rotor inflow, advected turbulent wake):
 /// averaged over 4 s after a 2 s wake build-up.
 double MeanDownwardForceBelow(const model::VehicleParams& p, double dz) {
-  WorldConfig c;
-  for (int i = 0; i < 2; ++i) {
-    VehicleSpec v;
-    v.params = p;
-    for (SensorSpec* s : {&v.sensors.mocap, &v.sensors.imu, &v.sensors.optical_flow,
-                          &v.sensors.compass, &v.sensors.battery, &v.sensors.relative}) {
-      s->enabled = false;
-    }
-    v.initial_throttle = p.throttle.Throttle(p.mass * kGravity / 4.0, 16.8);
-    c.vehicles.push_back(v);
-  }
-  c.ground = false;
-  c.battery.fixed_voltage = true;
-  c.downwash.enabled = true;
-  c.reality.wake = true;
-  c.reality.rotor_aerodynamics = true;
-  const Vec3 upper(0.0, 0.0, 20.0);
-  const Vec3 lower(0.0, 0.0, 20.0 - dz);
-  c.vehicles[0].position = upper;
-  c.vehicles[1].position = lower;
-  World w(c);
+  const std::vector<Vec3> f = validation::ForceBelowHoveringVehicle(p, dz, true, 6000, 2000, 1);
   double sum = 0.0;
   int n = 0;
-  for (int k = 0; k < 6000; ++k) {
-    w.SetPose(0, upper, Vec3::Zero());
-    w.SetPose(1, lower, Vec3::Zero());
-    w.StepOnce();
-    if (k >= 2000) {
-      sum -= w.GetTrueState(1).aero_force.z();
-      ++n;
-    }
+  for (const Vec3& x : f) {
+    sum -= x.z();
+    ++n;
   }
   return sum / n;
 }
