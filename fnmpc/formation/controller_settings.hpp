@@ -42,6 +42,11 @@ struct ControllerSettings {
   /// Most vehicles one controller tracks with a relative-sensor filter at once.
   int max_tracked = 8;
   Compensation compensation = Compensation::kNone;
+  /// Follower: decay time of a neighbour's estimated acceleration in its prediction [s]
+  /// (neighbour_acceleration.hpp); 0: constant-velocity prediction (the reference work).
+  double neighbour_acceleration_decay = 0.0;
+  /// Follower: low-pass time constant of that estimate (the neighbour velocity's derivative) [s].
+  double neighbour_acceleration_filter = 0.1;
 
   template <class Archive>
   void Serialize(Archive* a) {
@@ -59,6 +64,17 @@ struct ControllerSettings {
                    "neighbours at their predicted relative positions and hover thrust (smooth "
                    "round-jet model, docs/safety.md), the observer's d then carrying only the "
                    "rest. `fnmpc run --compensation` overrides it");
+    a->Visit("controller.neighbour_acceleration.decay", &neighbour_acceleration_decay,
+             NonNegative(),
+             "[s] follower: each formation neighbour is predicted with its estimated acceleration "
+             "(the filtered derivative of its estimated velocity, times the neighbour filter's "
+             "manoeuvre-mode probability) decaying as exp(-t / decay) over the horizon "
+             "(Singer's manoeuvre model; string stability down the graph, docs/results.md "
+             "\"Scale\"); 0 = constant-velocity prediction (the reference work)");
+    a->Visit("controller.neighbour_acceleration.filter_time", &neighbour_acceleration_filter,
+             NonNegative(),
+             "[s] follower: first-order low-pass time constant of the neighbour acceleration "
+             "estimate");
     a->Visit("controller.use_throttle", &use_throttle, AnyValue(),
              "true: command the collective throttle from the thrust and the measured battery "
              "voltage; false: the thrust");

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "fnmpc/core/stopwatch.hpp"
+#include "fnmpc/formation/neighbour_acceleration.hpp"
 #include "fnmpc/formation/throttle_map.hpp"
 #include "fnmpc/ocp/problem_extensions.hpp"
 #include "fnmpc/ocp/wake_extension.hpp"
@@ -81,6 +82,10 @@ void ControllerConfig::Validate() const {
   if (!(landing_time > takeoff_time)) fail("landing_time must be after takeoff_time");
   if (!(touchdown_margin > 0.0)) fail("touchdown_margin must be > 0");
   if (!(voltage_filter_time >= 0.0)) fail("voltage_filter_time must be >= 0");
+  if (!(neighbour_acceleration_decay >= 0.0) || !std::isfinite(neighbour_acceleration_decay))
+    fail("neighbour_acceleration.decay must be finite and >= 0");
+  if (!(neighbour_acceleration_filter >= 0.0) || !std::isfinite(neighbour_acceleration_filter))
+    fail("neighbour_acceleration.filter_time must be finite and >= 0");
   pid.Validate();
 }
 
@@ -94,6 +99,7 @@ struct NeighbourState {
   Vec3 vel = Vec3::Zero();      // [m/s]
   double yaw = 0.0;             // [rad]
   double yaw_rate = 0.0;        // [rad/s]
+  Vec3 acc = Vec3::Zero();      // estimated acceleration [m/s^2] (AccelerationEstimate)
 };
 
 /// Obstacle slots of the controllers' OCPs (the nearest sensed vehicles).
@@ -502,17 +508,17 @@ class FollowerCore final : public NmpcCore {
     if (changed) Aggregate();
   }
 
-  // Neighbour j's constant-velocity prediction at stage k (relative position and velocity),
-  // held on the ground: no neighbour is below its resting height (relative z floor_), where
+  // Neighbour j's prediction at stage k (relative position and velocity): constant velocity,
+  // or with its estimated acceleration decaying (neighbour_acceleration_decay > 0), held on
+  // the ground: no neighbour is below its resting height (relative z floor_), where
   // it stops. Without the floor a falling neighbour's prediction went metres below the
   // ground within the horizon (and its estimate too, once the filter gated the measurements
   // of the stopped vehicle), its relative-position bound then conflicted with the altitude
   // bound (equal penalties) and the cost broke the tie downwards: both followers of fault
   // campaign run 55 followed their falling leader into the ground at 2.3 m/s.
   void Predict(int j, int k, Vec3* rel, Vec3* vel) const {
-    const double tk = k * c_.rti.sample_time;
-    *rel = rel_[j] + tk * vel_[j];
-    *vel = vel_[j];
+    DecayingAccelerationPrediction(rel_[j], vel_[j], acc_[j], c_.neighbour_acceleration_decay,
+                                   k * c_.rti.sample_time, rel, vel);
     if (rel->z() < floor_) {
       rel->z() = floor_;
       vel->z() = 0.0;
@@ -533,6 +539,7 @@ class FollowerCore final : public NmpcCore {
     for (int j = 0; j < nn_; ++j) {
       rel_[j] = in.neighbours[j].rel_pos;
       vel_[j] = in.neighbours[j].vel;
+      acc_[j] = in.neighbours[j].acc;
     }
     // Compensation::kWake: the wakes of WakeSources at their predictions (Predict) and
     // NeighbourThrust; d is then the estimator's rest beyond the model (NmpcInput).
@@ -634,7 +641,7 @@ class FollowerCore final : public NmpcCore {
   Solver::YN wn_, wn_active_;
   int nn_ = 0, active_count_ = 0;
   std::array<bool, kMaxNeighbours> active_{};
-  std::array<Vec3, kMaxNeighbours> desired_{}, rel_{}, vel_{};
+  std::array<Vec3, kMaxNeighbours> desired_{}, rel_{}, vel_{}, acc_{};
   double floor_ = -kInf;  // relative z of a neighbour resting on the ground [m] (Predict)
   std::vector<Solver::Y> yref_;
   Solver::YN yref_n_;
@@ -729,6 +736,9 @@ VehicleController::VehicleController(const ControllerConfig& config)
   estimates_.neighbours.assign(nn, estimation::NeighbourStateVec::Constant(kNaN));
   estimates_.others.assign(tracks_.size(), estimation::NeighbourStateVec::Constant(kNaN));
   presence_.assign(nn, Presence{});
+  // A gap of more than two missed steps restarts the derivative.
+  neighbour_acceleration_.assign(nn, AccelerationEstimate(config_.neighbour_acceleration_filter,
+                                                          2.5 * config_.rti.sample_time));
   // The solver is built here, not at the take-off -> NMPC switch: no allocation in flight.
   if (config_.leader) {
     nmpc_ = std::make_unique<LeaderCore>(config_);
@@ -1311,7 +1321,14 @@ ControlOutput VehicleController::Step(double t) {
       for (std::size_t j = 0; j < estimates_.neighbours.size(); ++j) {
         const auto& x = estimates_.neighbours[j];
         in.active[j] = presence_[j].active && x.allFinite();
-        in.neighbours[j] = {x.segment<3>(0), x.segment<3>(3), x[6], x[7]};
+        in.neighbours[j] = {x.segment<3>(0), x.segment<3>(3), x[6], x[7], Vec3::Zero()};
+        if (config_.neighbour_acceleration_decay > 0.0) {
+          // The mixed estimate's mean acceleration: the hover mode's is zero (IMM; 1 without
+          // the filter's modes, e.g. ControlWithEstimates).
+          const double hover = neighbour_ekfs_[j].hover_probability();
+          const double manoeuvre = std::isfinite(hover) ? 1.0 - hover : 1.0;
+          in.neighbours[j].acc = manoeuvre * neighbour_acceleration_[j].Update(t, x.segment<3>(3));
+        }
       }
       in.last_command = last_command_.allFinite() ? last_command_
                                                   : Vec3(config_.params.mass * kGravity, 0.0, 0.0);

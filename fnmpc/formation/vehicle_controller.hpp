@@ -12,6 +12,7 @@
 #include "fnmpc/estimation/neighbour_ekf.hpp"
 #include "fnmpc/estimation/vehicle_ekf.hpp"
 #include "fnmpc/formation/controller_settings.hpp"
+#include "fnmpc/formation/neighbour_acceleration.hpp"
 #include "fnmpc/formation/neighbour_limits.hpp"
 #include "fnmpc/formation/nmpc_weights.hpp"
 #include "fnmpc/formation/recovery.hpp"
@@ -264,6 +265,8 @@ class VehicleController {
   bool reinit_pending_ = false;
   // Follower: neighbour presence (hysteresis on accepted relative measurements).
   std::vector<Presence> presence_;  // formation neighbours, configuration order
+  // Follower: the formation neighbours' acceleration estimates (neighbour_acceleration_decay).
+  std::vector<AccelerationEstimate> neighbour_acceleration_;
 };
 
 }  // namespace fnmpc::formation
