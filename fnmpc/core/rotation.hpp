@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include "fnmpc/core/eigen_abi.hpp"
+#include "fnmpc/core/sin_cos.hpp"
 
 /// Rotations in ZYX Euler convention: R = Rz(psi) * Ry(theta) * Rx(phi).
 namespace fnmpc {
@@ -19,11 +20,13 @@ Eigen::Matrix<S, 3, 1> BodyZ(const S& phi, const S& theta, const S& psi) {
 }
 
 /// BodyZ and its partial derivatives with respect to (phi, theta, psi) (columns of *dz)
-/// from one evaluation of the six sines and cosines.
+/// from one evaluation of the six sines and cosines (SinCos: inline for angles within pi/4).
 inline void BodyZAndJacobian(double phi, double theta, double psi, Eigen::Vector3d* z,
                              Eigen::Matrix3d* dz) {
-  const double cphi = std::cos(phi), sphi = std::sin(phi), cth = std::cos(theta),
-               sth = std::sin(theta), cpsi = std::cos(psi), spsi = std::sin(psi);
+  double cphi, sphi, cth, sth, cpsi, spsi;
+  SinCos(phi, &sphi, &cphi);
+  SinCos(theta, &sth, &cth);
+  SinCos(psi, &spsi, &cpsi);
   *z << cpsi * sth * cphi + spsi * sphi, spsi * sth * cphi - cpsi * sphi, cth * cphi;
   *dz << -cpsi * sth * sphi + spsi * cphi, cpsi * cth * cphi, -spsi * sth * cphi + cpsi * sphi,
       -spsi * sth * sphi - cpsi * cphi, spsi * cth * cphi, cpsi * sth * cphi + spsi * sphi,

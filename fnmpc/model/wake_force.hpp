@@ -91,8 +91,10 @@ class WakeForceModel {
     const double eps = s_.onset_width;
     const double s = -r.z();
     const double z = s / eps;
-    const double onset = 1.0 / (1.0 + std::exp(-z));                                    // logistic
-    const double dist = eps * (std::max(z, 0.0) + std::log1p(std::exp(-std::abs(z))));  // softplus
+    // exp(-|z|) is the logistic's exp(-z) for z >= 0 (the wake's side): one exponential there.
+    const double e_abs = std::exp(-std::abs(z));
+    const double onset = 1.0 / (1.0 + (z >= 0.0 ? e_abs : std::exp(-z)));  // logistic
+    const double dist = eps * (std::max(z, 0.0) + std::log1p(e_abs));      // softplus
     const double h = s_.wake_radius + s_.spreading_rate * dist;
     const double k = std::sqrt(std::max(thrust, 0.0) * inv_2_rho_a_) * k_per_vh_;
     const double q2 = (h_cap_ / h) * (h_cap_ / h);

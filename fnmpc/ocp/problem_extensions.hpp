@@ -162,38 +162,21 @@ struct WithInputRate {
   }
 };
 
-/// External acceleration a (the disturbance observer's estimate, offset-free NMPC) as a stage
-/// parameter, appended after the wrapped problem's: the dynamics become
-///   p' = v,  v' = f_v(angles, u) + a
-/// for the wrapped problem's position block at `Pos` and velocity block at `Vel` (any model
-/// whose v' does not depend on p or v, as the quadrotor models: the other rows are untouched).
-/// Held constant over each interval, a adds exactly a dt to v and a dt^2 / 2 to p; RK4 is
-/// exact for that part too (its stages are linear in a constant forcing of a double
-/// integrator), so the interval map is the wrapped one plus these terms and its
-/// sensitivities A, B are the wrapped ones. With a = 0 the map is the wrapped problem's, to
-/// the bit. Residuals are the wrapped problem's.
-template <class P, int Pos = 0, int Vel = 3>
-struct WithAcceleration {
-  using Model = typename P::Model;
-  static constexpr int kNx = P::kNx, kNu = P::kNu, kNy = P::kNy, kNyN = P::kNyN, kNp = P::kNp + 3;
-  static_assert(Pos + 3 <= kNx && Vel + 3 <= kNx, "position and velocity blocks in the state");
-  /// Offset of the acceleration a [m/s^2] in the stage parameters.
-  static constexpr int kParamAcceleration = P::kNp;
+/// Base of the extensions that change only the dynamics of the wrapped problem P
+/// (WithAcceleration, WithWake in wake_extension.hpp): the sizes are P's, `Extra` parameters
+/// are appended after P's, and the residuals are P's on its own leading parameters. The
+/// extension adds its Discretise (and Model when its transition matrix has other couplings).
+template <class P, int Extra>
+struct DynamicsExtension {
+  static constexpr int kNx = P::kNx, kNu = P::kNu, kNy = P::kNy, kNyN = P::kNyN,
+                       kNp = P::kNp + Extra;
   P base;
 
-  explicit WithAcceleration(const P& p = P{}) : base(p) {}
+  explicit DynamicsExtension(const P& p) : base(p) {}
 
-  /// Per-stage parameters of the solver contract (docs/rti.md): the wrapped problem's, then a.
+  /// Per-stage parameters of the solver contract (docs/rti.md): the wrapped problem's, then
+  /// the extension's.
   using Params = Vec<kNp>;
-  Vec<kNx> Discretise(const Vec<kNx>& x, const Vec<kNu>& u, const Params& p, double dt, int steps,
-                      Mat<kNx, kNx>* A, Mat<kNx, kNu>* B) const {
-    const typename P::Params pb = p.template head<P::kNp>();
-    Vec<kNx> next = base.Discretise(x, u, pb, dt, steps, A, B);
-    const Vec3 a = p.template segment<3>(kParamAcceleration);
-    next.template segment<3>(Pos) += (0.5 * dt * dt) * a;
-    next.template segment<3>(Vel) += dt * a;
-    return next;
-  }
 
   void StageResidual(const Vec<kNx>& x, const Vec<kNu>& u, const Vec<kNp>& p, Vec<kNy>* y,
                      Mat<kNy, kNx>* yx, Mat<kNy, kNu>* yu) const {
@@ -203,6 +186,41 @@ struct WithAcceleration {
   void TerminalResidual(const Vec<kNx>& x, const Vec<kNp>& p, Vec<kNyN>* y,
                         Mat<kNyN, kNx>* yx) const {
     base.TerminalResidual(x, p.template head<P::kNp>(), y, yx);
+  }
+};
+
+/// External acceleration a (the disturbance observer's estimate, offset-free NMPC) as a stage
+/// parameter, appended after the wrapped problem's: the dynamics become
+///   p' = v,  v' = f_v(angles, u) + a
+/// for the wrapped problem's position block at `Pos` and velocity block at `Vel` (any model
+/// whose v' does not depend on p or v, as the quadrotor models: the other rows are untouched).
+/// Held constant over each interval, a adds exactly a dt to v and a dt^2 / 2 to p; RK4 is
+/// exact for that part too (its stages are linear in a constant forcing of a double
+/// integrator), so the interval map is the wrapped one plus these terms and its
+/// sensitivities A, B are the wrapped ones. With a = 0 the map is the wrapped problem's, to
+/// the bit. Residuals are the wrapped problem's (DynamicsExtension).
+template <class P, int Pos = 0, int Vel = 3>
+struct WithAcceleration : DynamicsExtension<P, 3> {
+  using Model = typename P::Model;
+  using Ext = DynamicsExtension<P, 3>;
+  using Ext::kNp;
+  using Ext::kNu;
+  using Ext::kNx;
+  using typename Ext::Params;
+  static_assert(Pos + 3 <= kNx && Vel + 3 <= kNx, "position and velocity blocks in the state");
+  /// Offset of the acceleration a [m/s^2] in the stage parameters.
+  static constexpr int kParamAcceleration = P::kNp;
+
+  explicit WithAcceleration(const P& p = P{}) : Ext(p) {}
+
+  Vec<kNx> Discretise(const Vec<kNx>& x, const Vec<kNu>& u, const Params& p, double dt, int steps,
+                      Mat<kNx, kNx>* A, Mat<kNx, kNu>* B) const {
+    const typename P::Params pb = p.template head<P::kNp>();
+    Vec<kNx> next = this->base.Discretise(x, u, pb, dt, steps, A, B);
+    const Vec3 a = p.template segment<3>(kParamAcceleration);
+    next.template segment<3>(Pos) += (0.5 * dt * dt) * a;
+    next.template segment<3>(Vel) += dt * a;
+    return next;
   }
 };
 

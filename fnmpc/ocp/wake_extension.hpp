@@ -3,6 +3,7 @@
 
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/model/wake_force.hpp"
+#include "fnmpc/ocp/problem_extensions.hpp"
 
 /// The neighbours' predicted wakes in a follower's prediction (issue #17 item 2, compensation
 /// level `wake`): an extension of a least-squares problem (fnmpc/ocp/problems.hpp contract),
@@ -60,19 +61,22 @@ struct WakeCoupledModel : M {
 /// WithAcceleration: the interval map is the wrapped one plus a_w dt^2 / 2 on the position and
 /// a_w dt on the velocity, and A gains the rows (dt^2 / 2, dt) d a_w / d x_p. Residuals are the
 /// wrapped problem's. With every thrust zero the map and A are the wrapped problem's, to the
-/// bit. Parameters appended after the wrapped problem's: [c_o (3), T_o] per slot.
+/// bit. Parameters appended after the wrapped problem's: [c_o (3), T_o] per slot
+/// (DynamicsExtension).
 template <class P, int Slots, int Pos = 0, int Vel = 3>
-struct WithWake {
+struct WithWake : DynamicsExtension<P, 4 * Slots> {
   using Model = WakeCoupledModel<typename P::Model, Pos, Vel>;
+  using Ext = DynamicsExtension<P, 4 * Slots>;
+  using Ext::kNp;
+  using Ext::kNu;
+  using Ext::kNx;
+  using typename Ext::Params;
   static constexpr int kSlots = Slots;
-  static constexpr int kNx = P::kNx, kNu = P::kNu, kNy = P::kNy, kNyN = P::kNyN,
-                       kNp = P::kNp + 4 * Slots;
   static_assert(Pos + 3 <= kNx && Vel + 3 <= kNx, "position and velocity blocks in the state");
-  P base;
   model::WakeForceModel wake;
 
   explicit WithWake(const P& p = P{}, const model::WakeForceModel& w = model::WakeForceModel{})
-      : base(p), wake(w) {}
+      : Ext(p), wake(w) {}
 
   /// Offsets of slot o's neighbour position c_o [m] and thrust T_o [N] in the parameters.
   static constexpr int ParamSource(int o) { return P::kNp + 4 * o; }
@@ -100,13 +104,10 @@ struct WithWake {
     return a;
   }
 
-  /// Per-stage parameters of the solver contract (docs/rti.md): the wrapped problem's, then
-  /// the slots.
-  using Params = Vec<kNp>;
   Vec<kNx> Discretise(const Vec<kNx>& x, const Vec<kNu>& u, const Params& p, double dt, int steps,
                       Mat<kNx, kNx>* A, Mat<kNx, kNu>* B) const {
     const typename P::Params pb = p.template head<P::kNp>();
-    Vec<kNx> next = base.Discretise(x, u, pb, dt, steps, A, B);
+    Vec<kNx> next = this->base.Discretise(x, u, pb, dt, steps, A, B);
     Vec3 grad;
     const double a = Acceleration(x, p, &grad);
     next[Pos + 2] += 0.5 * dt * dt * a;
@@ -119,16 +120,6 @@ struct WithWake {
       }
     }
     return next;
-  }
-
-  void StageResidual(const Vec<kNx>& x, const Vec<kNu>& u, const Vec<kNp>& p, Vec<kNy>* y,
-                     Mat<kNy, kNx>* yx, Mat<kNy, kNu>* yu) const {
-    base.StageResidual(x, u, p.template head<P::kNp>(), y, yx, yu);
-  }
-
-  void TerminalResidual(const Vec<kNx>& x, const Vec<kNp>& p, Vec<kNyN>* y,
-                        Mat<kNyN, kNx>* yx) const {
-    base.TerminalResidual(x, p.template head<P::kNp>(), y, yx);
   }
 };
 
