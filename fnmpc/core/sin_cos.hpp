@@ -5,9 +5,9 @@
 
 namespace fnmpc {
 
-/// sin(x) and cos(x) together. For |x| <= pi/4, which holds for the roll and pitch of every
-/// reachable attitude (the attitude references are bounded by max_attitude_ref < 1.2 rad,
-/// typically 0.35) and for the yaw near zero, by their Taylor series about 0 in Horner form,
+/// sin(x) and cos(x) together. For |x| <= pi/4, which holds for the roll and pitch in normal
+/// flight (the attitude references are bounded by max_attitude_ref, default 0.35 rad) and for
+/// a yaw near zero, by their Taylor series about 0 in Horner form,
 /// inline: the terms up to x^17 (sine) and x^16 (cosine), whose truncation error, below
 /// x^19 / 19! and x^18 / 18! (1e-19 and 2e-18 at pi/4), is far below the half unit in the
 /// last place that the final rounding adds; the result is within 1 ulp of std::sin and
