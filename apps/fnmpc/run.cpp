@@ -182,8 +182,9 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
   sub->add_option("--compensation", a->compensation,
                   "override the scenario's controller.compensation: none (the reference work's "
                   "NMPC), observer (the estimated external acceleration in the prediction) or "
-                  "wake (plus the neighbours' predicted wakes); cooperative is not implemented "
-                  "yet (docs/scenarios.md)");
+                  "wake (plus the neighbours' predicted wakes) or cooperative (plus the "
+                  "neighbours' shared plans over the simulated link, block link:; "
+                  "docs/scenarios.md)");
   sub->add_flag("-q,--quiet", a->quiet, "no progress output");
   sub->add_flag("--dry-run", a->dry_run,
                 "check the scenario and print its vehicles (a generated formation expanded, "

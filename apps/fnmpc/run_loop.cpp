@@ -11,6 +11,7 @@
 
 #include "apps/fnmpc/fault_injector.hpp"
 #include "apps/fnmpc/output_files.hpp"
+#include "apps/fnmpc/plan_link.hpp"
 #include "apps/fnmpc/run_log.hpp"
 #include "apps/fnmpc/worker_pool.hpp"
 #include "fnmpc/formation/trajectory.hpp"
@@ -47,6 +48,21 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
     cc.safety.injected_failure_seed = options.seed;
     ctrl[i] = std::make_unique<formation::VehicleController>(cc);
   }
+
+  // ---- Cooperative mode: the plans go over the simulated link to the vehicles that have
+  // their publisher as a formation neighbour.
+  std::unique_ptr<PlanLink> link;
+  if (sc.compensation >= formation::Compensation::kCooperative) {
+    std::vector<std::vector<int>> receivers(static_cast<std::size_t>(nv));
+    for (int r = 0; r < nv; ++r) {
+      if (!ctrl[r]) continue;
+      for (const formation::NeighbourTarget& n : ctrl[r]->config().neighbours) {
+        receivers[static_cast<std::size_t>(n.vehicle)].push_back(r);
+      }
+    }
+    link = std::make_unique<PlanLink>(sc.link, std::move(receivers), sc.plan_timeout, options.seed);
+  }
+  formation::PlanMessage plan;
 
   // ---- Logs.
   std::filesystem::create_directories(dir);
@@ -164,6 +180,12 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
       } else if (ctrl[sc.leader] && ctrl[sc.leader]->anchor().allFinite()) {
         leader_ref = ctrl[sc.leader]->anchor() + ref_off;
       }
+      // Cooperative mode: the plans that have arrived, before the control step.
+      if (link) {
+        link->Deliver(t, [&](int r, const formation::PlanMessage& msg) {
+          if (ctrl[r] && !killed[r]) ctrl[r]->ReceivePlan(msg);
+        });
+      }
       // In parallel, per vehicle: its measurements, the kill fault, its control step and
       // the diagnostics (after the command in a real system; the world only gets the
       // command below, in vehicle order, so the order does not matter here).
@@ -181,6 +203,11 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
           ctrl[i]->Diagnose(&outs[i]);
         }
       });
+      if (link) {  // each plan of this step broadcast, in vehicle order (the loss draws' order)
+        for (int i = 0; i < nv; ++i) {
+          if (ctrl[i] && !killed[i] && ctrl[i]->MakePlan(&plan)) link->Send(plan, t);
+        }
+      }
       for (int i = 0; i < nv; ++i) {
         const auto& v = sc.vehicles[i];
         VehicleRecord& L = rec.vehicles[i];
@@ -358,6 +385,10 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
     rec.dropped.push_back(injector.dropped(w));
   rec.measurements = injector.measurements();
   rec.outliers = injector.outliers();
+  if (link) {
+    rec.link = true;
+    rec.link_stats = link->statistics();
+  }
   return rec;
 }
 

@@ -332,6 +332,18 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
   s["downwash"] = sc.downwash;
   s["reality"] = sc.reality.enabled;
   s["compensation"] = formation::ToString(sc.compensation);
+  if (r.link) {
+    const LinkStatistics& l = r.link_stats;
+    s["link"] = {{"latency_s", sc.link.latency},
+                 {"loss_rate", sc.link.loss_rate},
+                 {"bandwidth_bit_s", sc.link.bandwidth},
+                 {"plan_timeout_s", sc.plan_timeout},
+                 {"sent", l.sent},
+                 {"addressed", l.addressed},
+                 {"delivered", l.delivered},
+                 {"lost", l.lost},
+                 {"late", l.late}};
+  }
   // The scenario's default window; a follower with its own landing_time uses its own
   // (vehicles.<name>.formation_window_s).
   s["formation_window_s"] = {sc.trajectory_start, sc.landing_time};
@@ -394,6 +406,16 @@ json AggregateRuns(const std::vector<json>& runs) {
     converged = converged && r.value("solver_converged_every_step", false);
   }
   a["landed_safely"] = landed;
+  // Cooperative mode: the link's messages summed over the runs.
+  if (runs.front().contains("link")) {
+    json link = runs.front()["link"];
+    for (const char* k : {"sent", "addressed", "delivered", "lost", "late"}) {
+      long sum = 0;
+      for (const json& r : runs) sum += r.contains("link") ? r["link"].value(k, 0L) : 0L;
+      link[k] = sum;
+    }
+    a["link"] = link;
+  }
   bool complete = true;
   json failures = json::array();
   for (std::size_t r = 0; r < runs.size(); ++r) {
@@ -412,7 +434,7 @@ json AggregateRuns(const std::vector<json>& runs) {
   a["formation_window_s"] = runs.front()["formation_window_s"];
   a["aggregation"] =
       "means: mean over runs; max_*, solver_time_max_*, fallbacks, failures: worst run; "
-      "min_separation_m: smallest; flags: all runs";
+      "min_separation_m: smallest; flags: all runs; link messages: sums";
   a["run_summaries"] = runs;
   return a;
 }

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "apps/fnmpc/plan_link.hpp"
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/formation/neighbour_limits.hpp"
 #include "fnmpc/sim/world.hpp"
@@ -65,6 +66,8 @@ struct RunRecord {
   long injected_failures = 0;  ///< forced solver fallbacks (faults.solver_failures)
   std::vector<long> dropped;   ///< per faults.sensor_dropouts window
   long measurements = 0, outliers = 0;
+  bool link = false;          ///< cooperative mode: plans went over the simulated link
+  LinkStatistics link_stats;  ///< its messages
   std::string stopped;    ///< why the loop ended early ("interrupted"), empty: it did not
   std::string sim_error;  ///< the simulator's instability report
 };

@@ -182,6 +182,28 @@ struct RunCriteria {
   }
 };
 
+/// The simulated link of cooperative mode (block `link:`, `controller.compensation:
+/// cooperative`): what carries each vehicle's plan (formation::PlanMessage) to the vehicles
+/// that have it as a formation neighbour (apps/fnmpc/plan_link.hpp).
+struct LinkSettings {
+  double latency = 0.01;
+  double loss_rate = 0.0;
+  double bandwidth = 1e6;
+
+  template <class Archive>
+  void Serialize(Archive* a) {
+    a->Visit("latency", &latency, fnmpc::NonNegative().AtMost(1.0, "s"),
+             "[s] delay from the end of a plan's transmission to its delivery");
+    a->Visit("loss_rate", &loss_rate, fnmpc::NonNegative().AtMost(1.0, ""),
+             "probability that a receiver loses a message, drawn per message and receiver "
+             "(deterministic per run seed; 1: every message lost, cooperative then flies as "
+             "wake)");
+    a->Visit("bandwidth", &bandwidth, fnmpc::Positive(),
+             "[bit/s] each vehicle's transmitter: a plan takes its size (32 + 28 (N + 1) bytes) "
+             "over this to send, and queues behind the one still being sent");
+  }
+};
+
 /// The scenario's defaults of the controllers' shared settings where they differ from
 /// formation::ControllerSettings' own: the leader's first leg at 12 s, landing at 50 s.
 inline formation::ControllerSettings ScenarioControllerDefaults() {
@@ -227,6 +249,7 @@ struct ScenarioConfig : formation::ControllerSettings {
   ScenarioFaults faults;    ///< block `faults:` (fault injection of `fnmpc run`)
   RunCriteria metrics;      ///< block `metrics:`
   FlightEnvelope envelope;  ///< block `envelope:`
+  LinkSettings link;        ///< block `link:` (cooperative mode's simulated link)
   /// Things a user may mean but should know (a leader without motion capture, a neighbour
   /// out of sensor reach at the start), "file:line:column: key '...': what"; printed by
   /// `fnmpc run` and recorded in summary.json.
@@ -242,6 +265,7 @@ struct ScenarioConfig : formation::ControllerSettings {
     a->Nested("controller.weights.follower", &follower_weights);
     a->Nested("metrics", &metrics);
     a->Nested("envelope", &envelope);
+    a->Nested("link", &link);
   }
 };
 

@@ -8,17 +8,16 @@
 namespace fnmpc::formation {
 
 /// How much of the aerodynamic interaction the NMPC compensates (issue 17's ablation levels;
-/// each includes the ones before it). none, observer and wake exist; cooperative is named so
-/// that a file or the CLI asking for it gets "not implemented yet".
+/// each includes the ones before it).
 enum class Compensation : int {
   kNone = 0,         ///< the reference work's controller: no disturbance in the prediction
   kObserver = 1,     ///< the own estimator's external acceleration d as a stage parameter
   kWake = 2,         ///< plus the neighbours' predicted wakes (follower; model::WakeForceModel)
-  kCooperative = 3,  ///< (planned) plus shared plans and disturbance estimates
+  kCooperative = 3,  ///< plus the neighbours' shared plans (NeighbourPlans) while they are fresh
 };
 inline constexpr const char* kCompensationNames[] = {"none", "observer", "wake", "cooperative"};
-/// The names of Compensation, of which the first three are implemented.
-inline constexpr Choice kCompensationChoice{kCompensationNames, 4, 3};
+/// The names of Compensation, all implemented.
+inline constexpr Choice kCompensationChoice{kCompensationNames, 4, 4};
 inline const char* ToString(Compensation c) { return kCompensationNames[static_cast<int>(c)]; }
 
 /// The settings every vehicle's controller of a formation shares: what a scenario sets
@@ -47,6 +46,8 @@ struct ControllerSettings {
   double neighbour_acceleration_decay = 0.0;
   /// Follower: low-pass time constant of that estimate (the neighbour velocity's derivative) [s].
   double neighbour_acceleration_filter = 0.1;
+  /// Cooperative mode: a neighbour's plan older than this is not used [s].
+  double plan_timeout = 0.2;
 
   template <class Archive>
   void Serialize(Archive* a) {
@@ -63,7 +64,14 @@ struct ControllerSettings {
                    "plus, in a follower's prediction, the wakes of its first 4 active formation "
                    "neighbours at their predicted relative positions and hover thrust (smooth "
                    "round-jet model, docs/safety.md), the observer's d then carrying only the "
-                   "rest. `fnmpc run --compensation` overrides it");
+                   "rest; cooperative = wake plus, in a follower's prediction of a neighbour, the "
+                   "plan that neighbour published (predicted trajectory and thrust) while it is "
+                   "fresh, else constant velocity (docs/scenarios.md, block `link:`). "
+                   "`fnmpc run --compensation` overrides it");
+    a->Visit("controller.plan_timeout", &plan_timeout, Positive(),
+             "[s] cooperative: a neighbour's plan older than this (time since the control step "
+             "that made it) is late and not used; the neighbour is then predicted at constant "
+             "velocity");
     a->Visit("controller.neighbour_acceleration.decay", &neighbour_acceleration_decay,
              NonNegative(),
              "[s] follower: each formation neighbour is predicted with its estimated acceleration "

@@ -54,6 +54,7 @@ void ControllerConfig::Validate() const {
     fail(std::string("compensation '") + ToString(compensation) +
          "' is not implemented yet (accepted: " + kCompensationChoice.Accepted() + ")");
   }
+  if (!(plan_timeout > 0.0)) fail("plan_timeout must be > 0 s");
   safety.Validate();
   if (!leader) {
     if (neighbours.empty() || neighbours.size() > static_cast<std::size_t>(kMaxNeighbours)) {
@@ -122,7 +123,7 @@ WakeSlots WakeSources(const std::array<bool, kMaxNeighbours>& active, int count)
 
 /// Thrust [N] a follower assumes for a neighbour whose wake it predicts: the hover thrust of
 /// its own vehicle file (the neighbour's thrust is not measured, and its constant-velocity
-/// estimate has no acceleration to infer it from; cooperative mode would share it).
+/// estimate has no acceleration to infer it from); cooperative mode uses the shared plan's.
 double NeighbourThrust(const model::VehicleParams& own) { return own.mass * kGravity; }
 
 /// One NMPC step's inputs: own estimate and neighbour estimates.
@@ -148,6 +149,8 @@ struct NmpcInput {
   int obstacles = 0;
   // Fault injection: skip the solve and apply the time-shifted plan, as on a solver error.
   bool forced_failure = false;
+  // Compensation::kCooperative, follower: the neighbours' latest plans (else null).
+  const NeighbourPlans* plans = nullptr;
 };
 
 struct NmpcStep {
@@ -172,6 +175,8 @@ class NmpcCore {
   /// Predicted positions of the current iterate; `origin` is added to a follower's
   /// displacement (the leader's states are absolute).
   virtual void Predicted(const Vec3& origin, std::vector<Vec3>* out) const = 0;
+  /// The current iterate as a plan (displacements, velocities, thrusts; PlanMessage).
+  virtual void Plan(PlanMessage* out) const = 0;
 };
 
 namespace {
@@ -190,6 +195,23 @@ double Objective(const Solver& s, const Problem& problem, const typename Solver:
   problem.TerminalResidual(s.states()[s.horizon()], params[s.horizon()], &yn, nullptr);
   cost += 0.5 * (yn - yref_n).cwiseAbs2().dot(wn);
   return cost;
+}
+
+// The solver's current iterate into a plan: positions as displacements from the first stage
+// (a follower's states are displacements already, a leader's are absolute), velocities, and
+// the thrust input of each interval (the last interval's at the terminal point).
+template <class Solver>
+void WritePlan(const Solver& s, PlanMessage* out) {
+  const int n = std::min(s.horizon(), kMaxPlanIntervals);
+  out->points = n + 1;
+  const Vec3 origin = s.states()[0].template head<3>();
+  for (int k = 0; k <= n; ++k) {
+    const auto i = static_cast<std::size_t>(k);
+    const auto& x = s.states()[i];
+    out->displacement[i] = x.template head<3>() - origin;
+    out->velocity[i] = x.template segment<3>(3);
+    out->thrust[i] = s.inputs()[static_cast<std::size_t>(std::min(k, s.horizon() - 1))][0];
+  }
 }
 
 // One RTI step from x0 into *out; a forced failure (fault injection) does what Algorithm 1
@@ -317,6 +339,8 @@ class LeaderCore final : public NmpcCore {
   void Predicted(const Vec3& /*origin*/, std::vector<Vec3>* out) const override {
     for (const auto& x : solver_.states()) out->push_back(x.template head<3>());
   }
+
+  void Plan(PlanMessage* out) const override { WritePlan(solver_, out); }
 
  private:
   static Solver::X State(const NmpcInput& in) {
@@ -456,6 +480,8 @@ class FollowerCore final : public NmpcCore {
     for (const auto& x : solver_.states()) out->push_back(origin + x.head<3>());
   }
 
+  void Plan(PlanMessage* out) const override { WritePlan(solver_, out); }
+
  private:
   // Terminal: the reduced follower's rows times terminal_factor, the obstacle rows as is.
   void TerminalWeights(const Solver::Y& w, Solver::YN* wn) const {
@@ -516,9 +542,20 @@ class FollowerCore final : public NmpcCore {
   // of the stopped vehicle), its relative-position bound then conflicted with the altitude
   // bound (equal penalties) and the cost broke the tie downwards: both followers of fault
   // campaign run 55 followed their falling leader into the ground at 2.3 m/s.
-  void Predict(int j, int k, Vec3* rel, Vec3* vel) const {
-    DecayingAccelerationPrediction(rel_[j], vel_[j], acc_[j], c_.neighbour_acceleration_decay,
-                                   k * c_.rti.sample_time, rel, vel);
+  // Cooperative mode: neighbour j's fresh plan instead (NeighbourPlans::Predict: anchored at
+  // rel_[j], shifted by the plan's age), with its planned thrust in *thrust.
+  void Predict(int j, int k, Vec3* rel, Vec3* vel, double* thrust = nullptr) const {
+    PlanPrediction plan;
+    if (plans_ != nullptr &&
+        plans_->Predict(j, t_, k * c_.rti.sample_time, c_.plan_timeout, rel_[j], &plan)) {
+      *rel = plan.rel;
+      *vel = plan.vel;
+      if (thrust != nullptr) *thrust = plan.thrust;
+    } else {
+      DecayingAccelerationPrediction(rel_[j], vel_[j], acc_[j], c_.neighbour_acceleration_decay,
+                                     k * c_.rti.sample_time, rel, vel);
+      if (thrust != nullptr) *thrust = NeighbourThrust(c_.params);
+    }
     if (rel->z() < floor_) {
       rel->z() = floor_;
       vel->z() = 0.0;
@@ -541,12 +578,14 @@ class FollowerCore final : public NmpcCore {
       vel_[j] = in.neighbours[j].vel;
       acc_[j] = in.neighbours[j].acc;
     }
+    plans_ = in.plans;
+    t_ = in.t;
     // Compensation::kWake: the wakes of WakeSources at their predictions (Predict) and
-    // NeighbourThrust; d is then the estimator's rest beyond the model (NmpcInput).
+    // NeighbourThrust (cooperative: the planned thrust); d is then the estimator's rest beyond
+    // the model (NmpcInput).
     WakeSlots source;
     source.fill(-1);
     if (c_.compensation >= Compensation::kWake) source = WakeSources(active_, nn_);
-    const double neighbour_thrust = NeighbourThrust(c_.params);
     for (int k = 0; k <= solver_.horizon(); ++k) {
       Solver::P& p = params_[k];
       p[0] = yaw_ref_;
@@ -556,9 +595,10 @@ class FollowerCore final : public NmpcCore {
           continue;
         }
         Vec3 rel, vel;
-        Predict(source[o], k, &rel, &vel);
+        double thrust = kNaN;
+        Predict(source[o], k, &rel, &vel, &thrust);
         p.segment<3>(Wake::ParamSource(o)) = rel;
-        p[Wake::ParamThrust(o)] = neighbour_thrust;
+        p[Wake::ParamThrust(o)] = thrust;
       }
       Vec3 lo = Vec3::Constant(-kInf), hi = Vec3::Constant(kInf);
       // With no active neighbour: zero, finite and unweighted (keeps the linearisation finite).
@@ -643,6 +683,8 @@ class FollowerCore final : public NmpcCore {
   std::array<bool, kMaxNeighbours> active_{};
   std::array<Vec3, kMaxNeighbours> desired_{}, rel_{}, vel_{}, acc_{};
   double floor_ = -kInf;  // relative z of a neighbour resting on the ground [m] (Predict)
+  const NeighbourPlans* plans_ = nullptr;  // cooperative: the plans of the last Stage (Predict)
+  double t_ = 0.0;                         // time of the last Stage [s]
   std::vector<Solver::Y> yref_;
   Solver::YN yref_n_;
   std::vector<Solver::P> params_;
@@ -739,6 +781,9 @@ VehicleController::VehicleController(const ControllerConfig& config)
   // A gap of more than two missed steps restarts the derivative.
   neighbour_acceleration_.assign(nn, AccelerationEstimate(config_.neighbour_acceleration_filter,
                                                           2.5 * config_.rti.sample_time));
+  std::vector<int> neighbour_vehicles;
+  for (const NeighbourTarget& n : config_.neighbours) neighbour_vehicles.push_back(n.vehicle);
+  plans_ = NeighbourPlans(neighbour_vehicles);
   // The solver is built here, not at the take-off -> NMPC switch: no allocation in flight.
   if (config_.leader) {
     nmpc_ = std::make_unique<LeaderCore>(config_);
@@ -1075,6 +1120,18 @@ void VehicleController::Diagnose(ControlOutput* out) {
   nmpc_->Diagnose(&out->kkt, &out->cost);
 }
 
+bool VehicleController::ReceivePlan(const PlanMessage& m) { return plans_.Receive(m); }
+
+bool VehicleController::MakePlan(PlanMessage* out) const {
+  if (!std::isfinite(plan_time_) || phase_ != FlightPhase::kNmpc || !nmpc_started_) return false;
+  out->vehicle = config_.vehicle;
+  out->stamp = plan_time_;
+  out->sample_time = config_.rti.sample_time;
+  out->disturbance = plan_disturbance_.allFinite() ? plan_disturbance_ : Vec3(Vec3::Zero());
+  nmpc_->Plan(out);
+  return out->Valid();
+}
+
 std::vector<Vec3> VehicleController::PredictedPositions() const {
   std::vector<Vec3> out;
   if (phase_ != FlightPhase::kNmpc || !nmpc_started_) return out;
@@ -1200,6 +1257,7 @@ ControlOutput VehicleController::Step(double t) {
   const double dt =
       std::isfinite(last_time_) ? std::max(0.0, t - last_time_) : config_.rti.sample_time;
   last_time_ = t;
+  plan_time_ = kNaN;  // set again when this step runs the NMPC (MakePlan)
   ControlOutput out;
   out.time = t;
   out.voltage = voltage_;
@@ -1336,19 +1394,27 @@ ControlOutput VehicleController::Step(double t) {
       if (config_.compensation >= Compensation::kObserver && own.disturbance.allFinite()) {
         in.disturbance = own.disturbance;
       }
+      if (config_.compensation >= Compensation::kCooperative && !config_.leader) {
+        in.plans = &plans_;
+      }
       if (config_.compensation >= Compensation::kWake && !config_.leader) {
         const WakeSlots source =
             WakeSources(in.active, static_cast<int>(config_.neighbours.size()));
         for (const int j : source) {
-          if (j >= 0) {
-            in.wake.z() +=
-                wake_.Acceleration(-in.neighbours[j].rel_pos, NeighbourThrust(config_.params));
-          }
+          if (j < 0) continue;
+          // The planned thrust now when the neighbour's plan is fresh (cooperative).
+          PlanPrediction plan;
+          const bool planned =
+              in.plans != nullptr &&
+              plans_.Predict(j, t, 0.0, config_.plan_timeout, in.neighbours[j].rel_pos, &plan);
+          const double thrust = planned ? plan.thrust : NeighbourThrust(config_.params);
+          in.wake.z() += wake_.Acceleration(-in.neighbours[j].rel_pos, thrust);
         }
         if (!in.wake.allFinite()) in.wake.setZero();
       }
       out.wake = in.wake;
       out.disturbance = in.disturbance + in.wake;
+      plan_disturbance_ = out.disturbance;
       NearestObstacles(t, &in);
       // Fault injection (SafetyConfig::injected_failure_rate, 0 = off).
       in.forced_failure =
@@ -1363,6 +1429,7 @@ ControlOutput VehicleController::Step(double t) {
       }
       const NmpcStep s = nmpc_->Step(in);
       out.nmpc = true;
+      plan_time_ = t;
       out.nmpc_thrust = s.u[0];
       out.nmpc_roll = s.u[1];
       out.nmpc_pitch = s.u[2];

@@ -14,6 +14,7 @@
 #include "fnmpc/formation/controller_settings.hpp"
 #include "fnmpc/formation/neighbour_acceleration.hpp"
 #include "fnmpc/formation/neighbour_limits.hpp"
+#include "fnmpc/formation/neighbour_plan.hpp"
 #include "fnmpc/formation/nmpc_weights.hpp"
 #include "fnmpc/formation/recovery.hpp"
 #include "fnmpc/formation/takeoff_pid.hpp"
@@ -176,6 +177,16 @@ class VehicleController {
   /// outside the NMPC phase) [m]: leader in {n}; follower in {m}, i.e. its own estimated
   /// position plus the predicted displacement. For display (ROS nav_msgs/Path); allocates.
   [[nodiscard]] std::vector<Vec3> PredictedPositions() const;
+  /// Cooperative mode (Compensation::kCooperative): stores a plan published by a formation
+  /// neighbour (valid and newer than the one held; NeighbourPlans); the next control steps
+  /// predict that neighbour along it while it is younger than `plan_timeout`. Returns
+  /// whether it was stored. No allocation.
+  bool ReceivePlan(const PlanMessage& m);
+  /// This vehicle's plan from its last control step into *out, to publish (no allocation);
+  /// false when that step did not run the NMPC (nothing to publish).
+  bool MakePlan(PlanMessage* out) const;
+  /// Cooperative mode: the neighbours' plans held (configuration order).
+  [[nodiscard]] const NeighbourPlans& neighbour_plans() const { return plans_; }
 
  private:
   ControlOutput Step(double t);
@@ -267,6 +278,9 @@ class VehicleController {
   std::vector<Presence> presence_;  // formation neighbours, configuration order
   // Follower: the formation neighbours' acceleration estimates (neighbour_acceleration_decay).
   std::vector<AccelerationEstimate> neighbour_acceleration_;
+  NeighbourPlans plans_;            // cooperative: the formation neighbours' latest plans
+  double plan_time_ = kNaN;         // time of the last NMPC step (MakePlan) [s]
+  Vec3 plan_disturbance_ = Vec3::Zero();  // its predicted external acceleration [m/s^2]
 };
 
 }  // namespace fnmpc::formation

@@ -93,14 +93,10 @@ for d in 0 -5 nan inf 200; do
 done
 absent "$tmp/d" "a refused run created its folder"
 
-# ---- Compensation levels (issue #17): the planned one is refused as not implemented; the
-# level is recorded in summary.json at the top and per run.
-for level in cooperative; do
-  expect 1 "--compensation $level refused" -- "$fnmpc" run "$tri" --compensation "$level" -o "$tmp/c"
-  stderr_has "'$level' is not implemented yet" "--compensation $level says why"
-done
+# ---- Compensation levels (issue #17): an unknown one is refused; the level is recorded in
+# summary.json at the top and per run, cooperative mode's link statistics too.
 expect 1 "--compensation bogus refused" -- "$fnmpc" run "$tri" --compensation bogus -o "$tmp/c"
-stderr_has "must be one of none, observer, wake" "--compensation bogus lists the levels"
+stderr_has "must be one of none, observer, wake, cooperative" "--compensation bogus lists the levels"
 [[ -e "$tmp/c" ]] && { echo "FAIL: a refused run created its folder"; fails=$((fails + 1)); }
 expect 0 "--compensation observer flies" -- "$fnmpc" run "$tri" --compensation observer --duration 20 -q -o "$tmp/obs"
 for f in "$tmp/obs/summary.json" "$tmp/obs/run-01/summary.json"; do
@@ -108,6 +104,14 @@ for f in "$tmp/obs/summary.json" "$tmp/obs/run-01/summary.json"; do
 done
 head -1 "$tmp/obs/run-01/follower1.csv" | grep -q ',est_fx,est_fy,est_fz$' ||
   { echo "FAIL: the CSV lacks est_f*"; fails=$((fails + 1)); }
+expect 0 "--compensation cooperative flies" -- "$fnmpc" run "$tri" --compensation cooperative --duration 20 -q -o "$tmp/coop"
+for f in "$tmp/coop/summary.json" "$tmp/coop/run-01/summary.json"; do
+  grep -q '"compensation": "cooperative"' "$f" || { echo "FAIL: $f lacks the level"; fails=$((fails + 1)); }
+  grep -Eq '"delivered": [1-9]' "$f" || { echo "FAIL: $f lacks delivered plans"; fails=$((fails + 1)); }
+done
+{ cat "$tmp/tri.yaml"; printf 'link:\n  loss_rate: 1.5\n'; } >"$tmp/badlink.yaml"
+expect 1 "link.loss_rate 1.5 refused" -- "$fnmpc" run "$tmp/badlink.yaml" --compensation cooperative -o "$tmp/bl"
+stderr_has "link.loss_rate" "the link error names the key"
 
 # ---- Reused folder (item 10).
 mkdir -p "$tmp/used" && echo stale >"$tmp/used/ghost.csv"

@@ -202,27 +202,26 @@ TEST(CompensationTest, WakeLevelPredictsTheWakeItFliesInto) {
   EXPECT_EQ(wake.fallbacks, 0);
 }
 
-TEST(CompensationTest, PlannedLevelsAreRefusedAsNotImplemented) {
-  for (Compensation level : {Compensation::kCooperative}) {
+TEST(CompensationTest, EveryLevelIsAcceptedAndNamed) {
+  for (Compensation level : {Compensation::kNone, Compensation::kObserver, Compensation::kWake,
+                             Compensation::kCooperative}) {
     ControllerConfig cfg = BaseConfig(false);
     cfg.compensation = level;
-    try {
-      VehicleController c(cfg);
-      ADD_FAILURE() << ToString(level) << " accepted";
-    } catch (const std::invalid_argument& e) {
-      EXPECT_NE(std::string(e.what()).find("not implemented yet"), std::string::npos) << e.what();
-      EXPECT_NE(std::string(e.what()).find(ToString(level)), std::string::npos) << e.what();
-    }
+    EXPECT_NO_THROW(VehicleController{cfg}) << ToString(level);
   }
+  ControllerConfig cfg = BaseConfig(false);
+  cfg.plan_timeout = 0.0;
+  EXPECT_THROW(VehicleController{cfg}, std::invalid_argument);
   // And the names map one to one (the YAML key and the CLI use them)
   int index = -1;
   EXPECT_TRUE(kCompensationChoice.Check("observer", &index).empty());
   EXPECT_EQ(index, static_cast<int>(Compensation::kObserver));
   EXPECT_TRUE(kCompensationChoice.Check("wake", &index).empty());
   EXPECT_EQ(index, static_cast<int>(Compensation::kWake));
-  EXPECT_NE(kCompensationChoice.Check("cooperative", &index).find("not implemented yet"),
-            std::string::npos);
-  EXPECT_NE(kCompensationChoice.Check("full", &index).find("must be one of none, observer, wake"),
+  EXPECT_TRUE(kCompensationChoice.Check("cooperative", &index).empty());
+  EXPECT_EQ(index, static_cast<int>(Compensation::kCooperative));
+  EXPECT_NE(kCompensationChoice.Check("full", &index)
+                .find("must be one of none, observer, wake, cooperative"),
             std::string::npos);
 }
 

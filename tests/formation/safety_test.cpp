@@ -426,6 +426,41 @@ TEST(SafetyTest, NoAllocationFromTakeoffToLanding) {
   EXPECT_EQ(follower.phase(), FlightPhase::kLanded);
 }
 
+TEST(SafetyTest, NoAllocationWhenCooperativePlansAreExchanged) {
+  // Given a leader and a cooperative follower built (all allocation happens here),
+  ControllerConfig lc = BaseConfig(true);
+  lc.compensation = Compensation::kCooperative;
+  ControllerConfig fc = BaseConfig(false);
+  fc.compensation = Compensation::kCooperative;
+  VehicleController leader(lc), follower(fc);
+  Plant pl, pf;
+  std::vector<estimation::NeighbourStateVec> nb(1);
+  PlanMessage m;
+  int used = 0;
+  // when they fly for 8 s, the leader's plan handed to the follower every step,
+  const long n = ::fnmpc::testing::CountMallocs([&] {
+    for (int k = 0; k * kTs <= 8.0; ++k) {
+      const double t = k * kTs;
+      ControlOutput o = leader.ControlWithEstimates(t, pl.Estimate(t), {});
+      leader.Diagnose(&o);
+      pl.Step(o);
+      if (leader.MakePlan(&m) && follower.ReceivePlan(m)) ++used;
+      estimation::VehicleEstimate e = pf.Estimate(t + kTs);
+      e.position.z() -= kGround;
+      nb[0].setZero();
+      nb[0].head<3>() = pl.x.head<3>() - pf.x.head<3>();
+      nb[0].segment<3>(3) = pl.x.segment<3>(3);
+      ControlOutput f = follower.ControlWithEstimates(t + kTs, e, nb);
+      follower.Diagnose(&f);
+      pf.Step(f);
+    }
+  });
+  // then no C allocation call was made, and the follower received and held fresh plans.
+  EXPECT_EQ(n, 0);
+  EXPECT_GT(used, 50);
+  EXPECT_TRUE(follower.neighbour_plans().Fresh(0, 8.0 + kTs, fc.plan_timeout));
+}
+
 TEST(SafetyTest, TrackingSlotsChangeHandsWithoutAllocation) {
   // Given a follower with one formation neighbour (vehicle 0) and max_tracked 3: two slots
   // for the other vehicles in view, its own filter started by a compass reading,

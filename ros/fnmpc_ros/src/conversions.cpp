@@ -245,4 +245,49 @@ std::string RequiredParam(const ros::NodeHandle& nh, const std::string& name) {
   return v;
 }
 
+namespace {
+geometry_msgs::Vector3 ToVector3(const Vec3& v) {
+  geometry_msgs::Vector3 m;
+  m.x = v.x();
+  m.y = v.y();
+  m.z = v.z();
+  return m;
+}
+Vec3 FromVector3(const geometry_msgs::Vector3& m) { return {m.x, m.y, m.z}; }
+}  // namespace
+
+fnmpc_ros::Plan ToPlan(const formation::PlanMessage& plan) {
+  fnmpc_ros::Plan m;
+  m.header = MakeHeader(plan.stamp, kWorldFrame, 0);
+  m.vehicle = plan.vehicle;
+  m.sample_time = plan.sample_time;
+  for (int k = 0; k < plan.points; ++k) {
+    const auto i = static_cast<std::size_t>(k);
+    m.displacement.push_back(ToVector3(plan.displacement[i]));
+    m.velocity.push_back(ToVector3(plan.velocity[i]));
+    m.thrust.push_back(plan.thrust[i]);
+  }
+  m.disturbance = ToVector3(plan.disturbance);
+  return m;
+}
+
+bool FromPlan(const fnmpc_ros::Plan& msg, formation::PlanMessage* plan) {
+  const std::size_t n = msg.displacement.size();
+  if (n > static_cast<std::size_t>(formation::kMaxPlanIntervals) + 1 || msg.velocity.size() != n ||
+      msg.thrust.size() != n) {
+    return false;
+  }
+  plan->vehicle = msg.vehicle;
+  plan->stamp = ToSec(msg.header.stamp);
+  plan->sample_time = msg.sample_time;
+  plan->points = static_cast<int>(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    plan->displacement[i] = FromVector3(msg.displacement[i]);
+    plan->velocity[i] = FromVector3(msg.velocity[i]);
+    plan->thrust[i] = msg.thrust[i];
+  }
+  plan->disturbance = FromVector3(msg.disturbance);
+  return plan->Valid();
+}
+
 }  // namespace fnmpc::ros_bridge

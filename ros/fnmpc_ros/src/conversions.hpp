@@ -16,6 +16,7 @@
 #include "fnmpc_ros/AttitudeThrustSetpoint.h"
 #include "fnmpc_ros/Heading.h"
 #include "fnmpc_ros/OpticalFlow.h"
+#include "fnmpc_ros/Plan.h"
 #include "fnmpc_ros/RelativeMeasurement.h"
 #include "fnmpc_ros/SolverDiagnostics.h"
 
@@ -40,6 +41,7 @@ inline constexpr const char* kSetpoint = "setpoint";             // fnmpc_ros/At
 inline constexpr const char* kEstimate = "estimate";             // nav_msgs/Odometry
 inline constexpr const char* kPredictedPath = "predicted_path";  // nav_msgs/Path
 inline constexpr const char* kDiagnostics = "diagnostics";       // fnmpc_ros/SolverDiagnostics
+inline constexpr const char* kPlan = "plan";  // fnmpc_ros/Plan (cooperative mode)
 }  // namespace topics
 
 inline constexpr const char* kWorldFrame = "world";
@@ -77,6 +79,10 @@ Measurement FromRelative(const fnmpc_ros::RelativeMeasurement& msg, int vehicle)
 fnmpc_ros::AttitudeThrustSetpoint ToSetpoint(const formation::ControlOutput& out);
 fnmpc_ros::SolverDiagnostics ToDiagnostics(const formation::ControlOutput& out,
                                            const formation::VehicleController& controller);
+/// Cooperative mode: a plan to its message and back (FromPlan: false on a malformed one,
+/// different array lengths or more points than formation::kMaxPlanIntervals + 1).
+fnmpc_ros::Plan ToPlan(const formation::PlanMessage& plan);
+bool FromPlan(const fnmpc_ros::Plan& msg, formation::PlanMessage* plan);
 /// State as nav_msgs/Odometry: pose in `frame`, twist in the body frame (ROS convention).
 nav_msgs::Odometry ToOdometry(double t, const std::string& frame, const std::string& vehicle,
                               const Vec3& position, const Vec3& velocity_world, const Vec3& euler,

@@ -15,6 +15,7 @@
 //    ROS time (wall or /clock) runs Control every sample_time.
 #include <nav_msgs/Path.h>
 #include <ros/callback_queue.h>
+#include <ros/names.h>
 #include <ros/ros.h>
 
 #include <algorithm>
@@ -68,6 +69,17 @@ class VehicleNode {
     pnh.param("seed", seed, seed);
     if (seed < 0) seed = static_cast<int>(scenario_.seed);
     pnh.param("lockstep", lockstep_, false);
+    // As `fnmpc run --compensation`: overrides the scenario's controller.compensation.
+    std::string compensation;
+    pnh.param("compensation", compensation, std::string());
+    if (!compensation.empty()) {
+      int level = 0;
+      const std::string bad = formation::kCompensationChoice.Check(compensation, &level);
+      if (!bad.empty()) {
+        throw std::runtime_error("parameter " + pnh.resolveName("compensation") + ": " + bad);
+      }
+      scenario_.compensation = static_cast<formation::Compensation>(level);
+    }
     const auto trajectory = app::LeaderTrajectory(scenario_, static_cast<std::uint64_t>(seed));
     controller_ = std::make_unique<formation::VehicleController>(
         app::ControllerConfigFor(scenario_, index_, trajectory));
@@ -77,6 +89,23 @@ class VehicleNode {
     estimate_pub_ = nh_.advertise<nav_msgs::Odometry>(topics::kEstimate, 10);
     path_pub_ = nh_.advertise<nav_msgs::Path>(topics::kPredictedPath, 2);
     diag_pub_ = nh_.advertise<fnmpc_ros::SolverDiagnostics>(topics::kDiagnostics, 10);
+    // Cooperative mode: this vehicle's plan on <ns>/<vehicle>/plan, its formation
+    // neighbours' plans from theirs (the link is the ROS topic; controller.plan_timeout
+    // decides what is late).
+    if (scenario_.compensation >= formation::Compensation::kCooperative) {
+      plan_pub_ = nh_.advertise<fnmpc_ros::Plan>(topics::kPlan, 2);
+      const std::string parent = ros::names::parentNamespace(nh_.getNamespace());
+      for (const auto& n : v.neighbours) {
+        const std::string topic =
+            (parent == "/" ? "" : parent) + "/" + n.vehicle + "/" + topics::kPlan;
+        plan_subs_.push_back(nh_.subscribe<fnmpc_ros::Plan>(
+            topic, 10,
+            [this](const auto& m) {
+              if (FromPlan(*m, &plan_)) controller_->ReceivePlan(plan_);
+            },
+            {}, ros::TransportHints().tcpNoDelay()));
+      }
+    }
 
     // Large queues: in lockstep a whole control period of IMU samples arrives at once.
     const int q = 1000;
@@ -201,6 +230,7 @@ class VehicleNode {
     last_setpoint_ = ToSetpoint(out);
     setpoint_pub_.publish(last_setpoint_);
     controller_->Diagnose(&out);  // KKT value and cost after the command went out
+    if (plan_pub_ && controller_->MakePlan(&plan_)) plan_pub_.publish(ToPlan(plan_));
     last_answered_ = t;
     diag_pub_.publish(ToDiagnostics(out, *controller_));
     const auto& e = controller_->estimates().own;
@@ -234,8 +264,10 @@ class VehicleNode {
   int index_ = -1;
   bool lockstep_ = false;
   std::unique_ptr<formation::VehicleController> controller_;
-  ros::Publisher setpoint_pub_, estimate_pub_, path_pub_, diag_pub_;
+  ros::Publisher setpoint_pub_, estimate_pub_, path_pub_, diag_pub_, plan_pub_;
   std::vector<ros::Subscriber> subs_;
+  std::vector<ros::Subscriber> plan_subs_;  // cooperative: the formation neighbours' plans
+  formation::PlanMessage plan_;             // a plan being converted (either direction)
   ros::Subscriber sync_sub_;
   ros::Timer timer_;
   // Lockstep state.

@@ -29,6 +29,7 @@
 #include "apps/fnmpc/scenario_runner.hpp"
 #include "conversions.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc_ros/Plan.h"
 #include "fnmpc_ros/SimSync.h"
 
 namespace fnmpc::ros_bridge {
@@ -76,6 +77,10 @@ struct Observed {
   std::vector<double> drop_time;
   std::vector<int> min_active_after_kill;
   std::vector<int> last_active;
+  // Cooperative mode: per vehicle, plans seen on <vehicle>/plan, those with another length
+  // than horizon + 1 or another sender, and the last one's stamp.
+  std::vector<int> plans, bad_plans;
+  std::vector<double> last_plan;
   std::atomic<bool> killed{false};
   std::atomic<int> killed_pid{-1};
   std::atomic<double> kill_stamp{kNaN};      // the sync stamp at which the node was killed
@@ -137,6 +142,9 @@ void Watch() {
   g_obs.drop_time.assign(nv, kNaN);
   g_obs.min_active_after_kill.assign(nv, std::numeric_limits<int>::max());
   g_obs.last_active.assign(nv, -1);
+  g_obs.plans.assign(nv, 0);
+  g_obs.bad_plans.assign(nv, 0);
+  g_obs.last_plan.assign(nv, kNaN);
   int killed_index = -1;
   for (int i = 0; i < nv; ++i) {
     if (g_scenario.vehicles[i].name == g_settings.kill_vehicle) killed_index = i;
@@ -157,6 +165,14 @@ void Watch() {
           if (slot.empty()) slot.resize(nv);
           slot[i] = *m;
         }));
+    subs.push_back(nh.subscribe<fnmpc_ros::Plan>(ns + topics::kPlan, 100, [i](const auto& m) {
+      ++g_obs.plans[i];
+      g_obs.last_plan[i] = m->header.stamp.toSec();
+      if (m->displacement.size() != static_cast<std::size_t>(g_scenario.rti.horizon + 1) ||
+          m->vehicle != i) {
+        ++g_obs.bad_plans[i];
+      }
+    }));
     subs.push_back(nh.subscribe<fnmpc_ros::SolverDiagnostics>(
         ns + topics::kDiagnostics, 100, [i](const auto& m) {
           const double t = m->header.stamp.toSec();
@@ -335,6 +351,20 @@ TEST(Triangle, NoNodeDied) {
   for (std::size_t i = 0; i < g_obs.last_diagnostics.size(); ++i) {
     EXPECT_GE(g_obs.last_diagnostics[i], g_settings.duration - 0.5)
         << g_scenario.vehicles[i].name << " stopped publishing diagnostics";
+  }
+}
+
+// ---- Cooperative mode: every vehicle publishes its plan every control step of its NMPC phase.
+TEST(Cooperative, EveryVehiclePublishesItsPlan) {
+  const double landing = g_scenario.landing_time;
+  for (std::size_t i = 0; i < g_obs.plans.size(); ++i) {
+    const std::string& name = g_scenario.vehicles[i].name;
+    // NMPC from about 4.5 s to the landing: at least 80 % of those control periods,
+    EXPECT_GE(g_obs.plans[i], static_cast<int>(0.8 * (landing - 4.5) / g_scenario.rti.sample_time))
+        << name;
+    // each of horizon + 1 points from its own vehicle, the last one at the landing.
+    EXPECT_EQ(g_obs.bad_plans[i], 0) << name;
+    EXPECT_NEAR(g_obs.last_plan[i], landing, 0.2) << name;
   }
 }
 
