@@ -245,17 +245,6 @@ std::string RequiredParam(const ros::NodeHandle& nh, const std::string& name) {
   return v;
 }
 
-namespace {
-geometry_msgs::Vector3 ToVector3(const Vec3& v) {
-  geometry_msgs::Vector3 m;
-  m.x = v.x();
-  m.y = v.y();
-  m.z = v.z();
-  return m;
-}
-Vec3 FromVector3(const geometry_msgs::Vector3& m) { return {m.x, m.y, m.z}; }
-}  // namespace
-
 fnmpc_ros::Plan ToPlan(const formation::PlanMessage& plan) {
   fnmpc_ros::Plan m;
   m.header = MakeHeader(plan.stamp, kWorldFrame, 0);
