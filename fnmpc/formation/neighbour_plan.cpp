@@ -64,8 +64,11 @@ void Sample(const PlanMessage& p, double s, Vec3* d, Vec3* v, double* thrust) {
 }  // namespace
 
 bool NeighbourPlans::Predict(int j, double t, double tau, double max_age, const Vec3& rel_now,
-                             PlanPrediction* out) const {
-  if (!Fresh(j, t, max_age) || !rel_now.allFinite() || !std::isfinite(tau)) return false;
+                             const Vec3& vel_now, PlanPrediction* out) const {
+  if (!Fresh(j, t, max_age) || !rel_now.allFinite() || !vel_now.allFinite() ||
+      !std::isfinite(tau)) {
+    return false;
+  }
   const PlanMessage& p = plans_[static_cast<std::size_t>(j)];
   const double age = std::max(0.0, t - p.stamp);
   Vec3 d_now, v_now, d, v;
@@ -73,7 +76,7 @@ bool NeighbourPlans::Predict(int j, double t, double tau, double max_age, const 
   Sample(p, age, &d_now, &v_now, &thrust_now);
   Sample(p, age + std::max(0.0, tau), &d, &v, &thrust);
   out->rel = rel_now + (d - d_now);
-  out->vel = v;
+  out->vel = vel_now + (v - v_now);
   out->thrust = thrust;
   return true;
 }

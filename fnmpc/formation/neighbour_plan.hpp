@@ -43,7 +43,7 @@ struct PlanMessage {
 /// What a plan says about its publisher `tau` after the receiver's time t.
 struct PlanPrediction {
   Vec3 rel = Vec3::Zero();  ///< relative position p_j - p_self(t), anchored (see Predict)
-  Vec3 vel = Vec3::Zero();  ///< the publisher's velocity [m/s]
+  Vec3 vel = Vec3::Zero();  ///< the publisher's velocity, anchored likewise [m/s]
   double thrust = kNaN;     ///< its planned thrust [N]
 };
 
@@ -61,12 +61,15 @@ class NeighbourPlans {
   [[nodiscard]] bool Fresh(int j, double t, double max_age) const;
   /// Neighbour j at t + tau from its plan, if Fresh: the plan's displacement between now
   /// (age a = t - stamp) and a + tau added to `rel_now`, the receiver's own current estimate
-  /// of p_j - p_self (the anchor: the plan's absolute origin is never needed), with the
-  /// plan's velocity and thrust there. Linear interpolation between the plan's points;
-  /// beyond its last point, constant velocity from there. Returns false (and leaves *out) when
-  /// there is no fresh plan: the caller falls back to constant velocity.
+  /// of p_j - p_self (the anchor: the plan's absolute origin is never needed), and the plan's
+  /// change of velocity over the same interval added to `vel_now`, the receiver's estimate of
+  /// the neighbour's velocity: the relative velocity stays in the receiver's own estimation
+  /// frame (a bias of either vehicle's own velocity estimate would otherwise become a drift of
+  /// followers that see only each other), with the plan's thrust there. Linear interpolation
+  /// between the plan's points; beyond its last point, constant velocity from there. Returns
+  /// false (and leaves *out) when there is no fresh plan: the caller falls back.
   bool Predict(int j, double t, double tau, double max_age, const Vec3& rel_now,
-               PlanPrediction* out) const;
+               const Vec3& vel_now, PlanPrediction* out) const;
   /// The stored plan of slot j (stamp NaN: none yet).
   [[nodiscard]] const PlanMessage& plan(int j) const { return plans_.at(j); }
   [[nodiscard]] int slots() const { return static_cast<int>(plans_.size()); }

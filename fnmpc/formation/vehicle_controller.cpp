@@ -543,11 +543,12 @@ class FollowerCore final : public NmpcCore {
   // bound (equal penalties) and the cost broke the tie downwards: both followers of fault
   // campaign run 55 followed their falling leader into the ground at 2.3 m/s.
   // Cooperative mode: neighbour j's fresh plan instead (NeighbourPlans::Predict: anchored at
-  // rel_[j], shifted by the plan's age), with its planned thrust in *thrust.
+  // rel_[j] and vel_[j], shifted by the plan's age), with its planned thrust in *thrust.
   void Predict(int j, int k, Vec3* rel, Vec3* vel, double* thrust = nullptr) const {
     PlanPrediction plan;
     if (plans_ != nullptr &&
-        plans_->Predict(j, t_, k * c_.rti.sample_time, c_.plan_timeout, rel_[j], &plan)) {
+        plans_->Predict(j, t_, k * c_.rti.sample_time, c_.plan_timeout, rel_[j], vel_[j],
+                        &plan)) {
       *rel = plan.rel;
       *vel = plan.vel;
       if (thrust != nullptr) *thrust = plan.thrust;
@@ -1406,7 +1407,8 @@ ControlOutput VehicleController::Step(double t) {
           PlanPrediction plan;
           const bool planned =
               in.plans != nullptr &&
-              plans_.Predict(j, t, 0.0, config_.plan_timeout, in.neighbours[j].rel_pos, &plan);
+              plans_.Predict(j, t, 0.0, config_.plan_timeout, in.neighbours[j].rel_pos,
+                             in.neighbours[j].vel, &plan);
           const double thrust = planned ? plan.thrust : NeighbourThrust(config_.params);
           in.wake.z() += wake_.Acceleration(-in.neighbours[j].rel_pos, thrust);
         }

@@ -41,40 +41,42 @@ TEST(NeighbourPlansTest, AnchorsAtTheRelativeEstimateAndShiftsByTheAge) {
   // of the neighbour is rel_now,
   NeighbourPlans plans({0});
   ASSERT_TRUE(plans.Receive(AcceleratingPlan(1.0)));
-  const Vec3 rel_now(1.0, -2.0, 0.5);
+  const Vec3 rel_now(1.0, -2.0, 0.5), vel_now(0.3, 0.0, -0.1);
   const PlanMessage m = AcceleratingPlan(1.0);
   PlanPrediction p;
   // When it predicts at t = 1.1 s (age two points) 0.15 s ahead (three points),
-  ASSERT_TRUE(plans.Predict(0, 1.1, 0.15, 0.2, rel_now, &p));
-  // then the plan's displacement from age to age + tau is added to the anchor, with the
-  // plan's velocity and thrust there,
+  ASSERT_TRUE(plans.Predict(0, 1.1, 0.15, 0.2, rel_now, vel_now, &p));
+  // then the plan's displacement from age to age + tau is added to the anchor, and its
+  // change of velocity to the velocity estimate, with the plan's thrust there,
   EXPECT_LT((p.rel - (rel_now + m.displacement[5] - m.displacement[2])).norm(), 1e-12);
-  EXPECT_LT((p.vel - m.velocity[5]).norm(), 1e-12);
+  EXPECT_LT((p.vel - (vel_now + m.velocity[5] - m.velocity[2])).norm(), 1e-12);
   EXPECT_NEAR(p.thrust, 15.0, 1e-12);
   // at tau = 0 the prediction is the anchor itself (the plan's origin is never used),
-  ASSERT_TRUE(plans.Predict(0, 1.1, 0.0, 0.2, rel_now, &p));
+  ASSERT_TRUE(plans.Predict(0, 1.1, 0.0, 0.2, rel_now, vel_now, &p));
   EXPECT_LT((p.rel - rel_now).norm(), 1e-12);
-  // between points it interpolates (age 0.125 s: halfway between points 2 and 3),
-  ASSERT_TRUE(plans.Predict(0, 1.125, 0.0, 0.2, rel_now, &p));
+  EXPECT_LT((p.vel - vel_now).norm(), 1e-12);
+  // between points it interpolates (age + tau = 0.125 s: halfway between points 2 and 3),
+  ASSERT_TRUE(plans.Predict(0, 1.1, 0.025, 0.2, rel_now, vel_now, &p));
   EXPECT_NEAR(p.thrust, 12.5, 1e-12);
-  EXPECT_NEAR(p.vel.z(), 2.0 * 0.125, 1e-12);
+  EXPECT_NEAR(p.vel.z(), vel_now.z() + 2.0 * 0.025, 1e-12);
+  EXPECT_NEAR(p.rel.z(), rel_now.z() + 0.5 * (0.1 * 0.1 + 0.15 * 0.15) - 0.1 * 0.1, 1e-12);
   // and beyond its last point (0.75 s) it goes on at the last velocity.
-  ASSERT_TRUE(plans.Predict(0, 1.1, 1.0, 0.2, rel_now, &p));
+  ASSERT_TRUE(plans.Predict(0, 1.1, 1.0, 0.2, rel_now, vel_now, &p));
   const Vec3 end = m.displacement[15] + (1.1 - 0.75) * m.velocity[15];
   EXPECT_LT((p.rel - (rel_now + end - m.displacement[2])).norm(), 1e-12);
-  EXPECT_LT((p.vel - m.velocity[15]).norm(), 1e-12);
+  EXPECT_LT((p.vel - (vel_now + m.velocity[15] - m.velocity[2])).norm(), 1e-12);
 }
 
 TEST(NeighbourPlansTest, LateLostOrInvalidPlansAreNotUsed) {
   NeighbourPlans plans({0, 3});
   PlanPrediction p;
   // No plan yet: nothing to predict from,
-  EXPECT_FALSE(plans.Predict(0, 1.0, 0.0, 0.2, Vec3::Zero(), &p));
+  EXPECT_FALSE(plans.Predict(0, 1.0, 0.0, 0.2, Vec3::Zero(), Vec3::Zero(), &p));
   ASSERT_TRUE(plans.Receive(AcceleratingPlan(1.0)));
   // fresh up to max_age, late after it,
   EXPECT_TRUE(plans.Fresh(0, 1.2, 0.2));
   EXPECT_FALSE(plans.Fresh(0, 1.2001, 0.2));
-  EXPECT_FALSE(plans.Predict(0, 1.3, 0.0, 0.2, Vec3::Zero(), &p));
+  EXPECT_FALSE(plans.Predict(0, 1.3, 0.0, 0.2, Vec3::Zero(), Vec3::Zero(), &p));
   EXPECT_FALSE(plans.Fresh(1, 1.1, 0.2));  // the other neighbour has sent nothing
   // an older or repeated plan does not replace the one held, a newer one does,
   EXPECT_FALSE(plans.Receive(AcceleratingPlan(0.9)));
