@@ -145,7 +145,7 @@ def main():
                  "downed_safe": 0, "fell": 0, "fallbacks": 0, "injected": 0, "reinits": 0,
                  "failsafes": 0, "dropped": 0, "outliers": 0, "zmax": 0.0, "dmax": 0.0,
                  "minsep": math.inf, "bad": 0, "impact": [], "touchdown": [], "strikes": [],
-                 "shifts": 0} for k in KINDS}
+                 "shifts": 0, "leaderless": 0, "departures": 0} for k in KINDS}
     failures = []
     started = time.time()
     for r in range(a.runs):
@@ -189,6 +189,7 @@ def main():
             st["safe"] += bool(v.get("landed_safely"))
             ok = ok and bool(v.get("landed_safely"))
             st["shifts"] += int(v.get("landing_site_shifts") or 0)
+            st["departures"] += int(v.get("neighbour_departures") or 0)
             if name in c["strikes"]:
                 st["strikes"].append(c["strikes"][name][1])
                 ok = False
@@ -200,6 +201,7 @@ def main():
         st["fallbacks"] += int(s.get("fallbacks") or 0)
         st["reinits"] += int(s.get("recoveries") or 0)
         st["failsafes"] += int(s.get("failsafes") or 0)
+        st["leaderless"] += int(s.get("leaderless_landings") or 0)
         st["injected"] += int(fj.get("solver_failures", {}).get("injected", 0))
         st["dropped"] += sum(int(w["dropped"]) for w in fj.get("sensor_dropouts", []))
         st["outliers"] += int(fj.get("outliers", {}).get("corrupted", 0))
@@ -220,10 +222,11 @@ def main():
               f"({time.time() - started:.0f} s)", file=sys.stderr, flush=True)
     print("| fault kind | runs | crashes | non-finite commands | other vehicles landed safely | "
           "downed vehicle | injected solver "
-          "failures | fallbacks | re-inits | failsafes | landing sites moved | "
+          "failures | fallbacks | re-inits | failsafes | neighbours departed | "
+          "leaderless landings | landing sites moved | "
           "ground strikes in flight | dropped / outlier measurements | "
           "max z [m] | max distance from start [m] | min separation [m] | runs failing a check |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     tot = {"runs": 0, "bad": 0}
     for k in KINDS:
         st = stats[k]
@@ -243,7 +246,8 @@ def main():
                    f"{max(st['strikes']):.2f} m/s)" if st["strikes"] else "0")
         print(f"| {k} | {st['runs']} | {st['crashes']} | {st['nan']} | "
               f"{st['safe']}/{st['others']} | {downed} | {st['injected']} | {st['fallbacks']} | "
-              f"{st['reinits']} | {st['failsafes']} | {st['shifts']} | {strikes} | "
+              f"{st['reinits']} | {st['failsafes']} | {st['departures']} | {st['leaderless']} | "
+              f"{st['shifts']} | {strikes} | "
               f"{st['dropped']} / {st['outliers']} | "
               f"{st['zmax']:.2f} | {st['dmax']:.2f} | "
               f"{st['minsep'] if math.isinf(st['minsep']) else round(st['minsep'], 2)} | "

@@ -238,6 +238,15 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
           world.SetCommand(i, cmd);
           if (out.recovery == formation::RecoveryAction::kReinitialise) ++L.reinitialisations;
           if (out.recovery == formation::RecoveryAction::kShiftLandingSite) ++L.landing_site_shifts;
+          if (out.recovery == formation::RecoveryAction::kLand) {
+            L.tie_loss_time = t;
+            L.tie_loss_reason = std::string(formation::ToString(out.recovery_reason));
+            if (options.progress) {
+              std::fprintf(stderr,
+                           "\n%s t = %.2f s: %s lands, no formation tie to the leader (%s)\n",
+                           options.label.c_str(), t, v.name.c_str(), L.tie_loss_reason.c_str());
+            }
+          }
           if (out.recovery == formation::RecoveryAction::kFailsafe) {
             L.failsafe_time = t;
             L.failsafe_reason = std::string(formation::ToString(out.recovery_reason));
@@ -378,6 +387,7 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
   for (int i = 0; i < nv; ++i) {
     rec.controlled.push_back(ctrl[i] ? 1 : 0);
     rec.estimator_rejections.push_back(ctrl[i] ? ctrl[i]->estimator_rejections() : 0);
+    if (ctrl[i]) rec.vehicles[i].neighbour_departures = ctrl[i]->neighbour_departures();
     rec.final_state.push_back(world.GetTrueState(i));
     rec.final_autopilot.push_back(world.GetAutopilotStatus(i));
   }

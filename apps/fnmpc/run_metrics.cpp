@@ -45,7 +45,7 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
   std::vector<double> all_times;
   double time_max = 0.0, time_max_first = 0.0;
   long fallbacks = 0, failures = 0, over_budget = 0, nmpc_steps = 0, guarded = 0;
-  long recoveries = 0, failsafes = 0;
+  long recoveries = 0, failsafes = 0, leaderless_landings = 0;
   bool landed_safely = true;
   auto worse = [](double a, double b) {
     return std::isnan(a) ? b : (std::isnan(b) ? a : std::max(a, b));
@@ -106,8 +106,13 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
       j["failsafe_time_s"] = Num(L.failsafe_time);
       j["failsafe_reason"] = L.failsafe_reason.empty() ? json(nullptr) : json(L.failsafe_reason);
       j["landing_site_shifts"] = L.landing_site_shifts;
+      j["neighbour_departures"] = L.neighbour_departures;
+      j["leaderless_landing_time_s"] = Num(L.tie_loss_time);
+      j["leaderless_landing_reason"] =
+          L.tie_loss_reason.empty() ? json(nullptr) : json(L.tie_loss_reason);
       recoveries += L.reinitialisations;
       failsafes += std::isfinite(L.failsafe_time) ? 1 : 0;
+      leaderless_landings += std::isfinite(L.tie_loss_time) ? 1 : 0;
       j["solver_failures"] = L.failures;
       j["guarded_commands"] = L.guarded;
       j["estimator_rejections"] = r.estimator_rejections[i];
@@ -362,6 +367,7 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
   s["fallbacks"] = fallbacks;
   s["recoveries"] = recoveries;
   s["failsafes"] = failsafes;
+  s["leaderless_landings"] = leaderless_landings;
   s["solver_failures"] = failures;
   s["solver_converged_every_step"] = failures == 0 && fallbacks == 0 && nmpc_steps > 0;
   s["guarded_commands"] = guarded;
@@ -391,7 +397,7 @@ json AggregateRuns(const std::vector<json>& runs) {
   for (const char* k :
        {"max_formation_error_m", "max_formation_error_flight_m", "mean_formation_error_flight_m",
         "solver_time_max_s", "solver_time_max_after_first_step_s", "fallbacks", "recoveries",
-        "failsafes", "solver_failures", "guarded_commands"}) {
+        "failsafes", "leaderless_landings", "solver_failures", "guarded_commands"}) {
     a[k] = Num(Max(values(k)));
   }
   {

@@ -30,8 +30,11 @@ struct VehicleRecord {
   long over_budget = 0, steps = 0, fallbacks = 0, guarded = 0, failures = 0;
   long reinitialisations = 0;
   long landing_site_shifts = 0;  // landing sites moved clear of a vehicle below
+  long neighbour_departures = 0;  // neighbours dropped for leaving the formation (at the end)
   double failsafe_time = kNaN;
   std::string failsafe_reason;
+  double tie_loss_time = kNaN;  // follower landed for want of a tie to the leader [s]
+  std::string tie_loss_reason;
   double first_step_time = kNaN;
   double touchdown_vz = kNaN, touchdown_time = kNaN;
   double max_thrust_jump_at_switch = kNaN;

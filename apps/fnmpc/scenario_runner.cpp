@@ -49,6 +49,7 @@ formation::ControllerConfig ControllerConfigFor(const config::ScenarioConfig& sc
   static_cast<formation::ControllerSettings&>(c) = sc;  // the settings every vehicle shares
   c.vehicle = i;
   c.leader = v.leader;
+  c.leader_vehicle = sc.leader;  // followers: departure anchor, leader-down landing
   c.params = v.params;
   c.sensors = v.sensors;
   c.weights = v.leader ? sc.leader_weights : sc.follower_weights;

@@ -31,6 +31,10 @@ void SafetyConfig::Validate() const {
     fail("neighbour_timeout must be > 0 and finite");
   if (!(neighbour_reacquire_time >= 0.0) || !std::isfinite(neighbour_reacquire_time))
     fail("neighbour_reacquire_time must be >= 0 and finite");
+  if (!(neighbour_departure_height >= 0.0) || !std::isfinite(neighbour_departure_height))
+    fail("neighbour_departure_height must be >= 0 and finite");
+  if (!(neighbour_departure_time >= 0.0) || !std::isfinite(neighbour_departure_time))
+    fail("neighbour_departure_time must be >= 0 and finite");
   if (!(collision_radius >= 0.0 && collision_radius <= 10.0))
     fail("collision_radius must be in [0, 10] m");
   if (!(injected_failure_rate >= 0.0 && injected_failure_rate <= 1.0))
@@ -48,6 +52,8 @@ std::string_view ToString(RecoveryAction a) {
       return "failsafe";
     case RecoveryAction::kShiftLandingSite:
       return "shift_landing_site";
+    case RecoveryAction::kLand:
+      return "land";
   }
   return "?";
 }
@@ -66,6 +72,10 @@ std::string_view ToString(RecoveryReason r) {
       return "commanded";
     case RecoveryReason::kVehicleBelow:
       return "vehicle_below";
+    case RecoveryReason::kLeaderDown:
+      return "leader_down";
+    case RecoveryReason::kNeighboursGone:
+      return "neighbours_gone";
   }
   return "?";
 }

@@ -51,6 +51,8 @@ struct SafetyConfig {
   double min_altitude = 0.3, max_altitude = 10.0;
   double neighbour_timeout = 1.0;
   double neighbour_reacquire_time = 0.5;
+  double neighbour_departure_height = 0.5;
+  double neighbour_departure_time = 0.3;
   double collision_radius = 0.45;
   RecoveryConfig recovery;
 
@@ -69,6 +71,13 @@ struct SafetyConfig {
     a->Visit("neighbour_reacquire_time", &neighbour_reacquire_time, NonNegative(),
              "[s] it returns after accepted measurements spanning this long, no gap longer "
              "than this");
+    a->Visit("neighbour_departure_height", &neighbour_departure_height, NonNegative(),
+             "[m] a follower's neighbour this far below its place relative to the leader (or to "
+             "each of at least two other neighbours) for `neighbour_departure_time` has left the "
+             "formation and leaves the cost; it returns within half of it for "
+             "`neighbour_reacquire_time` (0: off; docs/safety.md)");
+    a->Visit("neighbour_departure_time", &neighbour_departure_time, NonNegative(),
+             "[s] how long a neighbour must stay that far below before it leaves the cost");
     a->Visit("collision_radius", &collision_radius, NonNegative().AtMost(10, "m"),
              "[m] r_min: soft minimum CoM distance to every vehicle the relative sensor sees, "
              "in the OCP (0: off); default twice the reference vehicle's arm length (0.225 m, "
@@ -111,6 +120,9 @@ enum class RecoveryAction : int {
   /// Landing: the landing site was moved clear of a sensed vehicle below (docs/safety.md
   /// "Landing clear of other vehicles"); not the ladder's, it never changes the ladder state.
   kShiftLandingSite = 3,
+  /// Follower: no formation tie leads to the leader any more (TieLoss, formation_ties.hpp);
+  /// it lands where it is with the PID landing (docs/safety.md). Not the ladder's either.
+  kLand = 4,
 };
 
 /// Why the ladder acted.
@@ -121,6 +133,8 @@ enum class RecoveryReason : int {
   kEstimateUnusable = 3,      ///< no usable estimate for estimate_timeout
   kCommanded = 4,             ///< requested from outside (fault injection, operator)
   kVehicleBelow = 5,          ///< a sensed vehicle within r_min of the landing site, below
+  kLeaderDown = 6,            ///< the leader landed or left the formation (TieLoss)
+  kNeighboursGone = 7,        ///< every formation neighbour landed or left it (TieLoss)
 };
 std::string_view ToString(RecoveryAction a);
 std::string_view ToString(RecoveryReason r);

@@ -40,6 +40,8 @@ void ControllerConfig::Validate() const {
   params.Validate();
   rti.Validate();
   if (vehicle < 0) fail("vehicle index must be >= 0, got " + std::to_string(vehicle));
+  if (leader_vehicle < -1)
+    fail("leader_vehicle must be >= -1, got " + std::to_string(leader_vehicle));
   if (!(thrust_min >= 0.0 && thrust_max > thrust_min)) fail("thrust bounds need 0 <= min < max");
   if (!(max_attitude_ref > 0.0 && max_attitude_ref < 1.2))
     fail("max_attitude_ref must be in (0, 1.2) rad");
@@ -752,7 +754,9 @@ VehicleController::VehicleController(const ControllerConfig& config)
       ekf_(OwnEkfConfig(config), config.params),
       wake_(config.params),
       pid_(config.pid, config.params.mass),
-      ladder_(config.safety.recovery) {
+      ladder_(config.safety.recovery),
+      departure_(config.safety.neighbour_departure_height, config.safety.neighbour_departure_time,
+                 config.safety.neighbour_reacquire_time) {
   for (const NeighbourTarget& n : config_.neighbours) {
     estimation::NeighbourEkfConfig nc;
     nc.sensors = config_.sensors;
@@ -945,9 +949,23 @@ void VehicleController::Blend(double t, double* thrust, double* roll, double* pi
 void VehicleController::UpdateNeighbourPresence(double t) {
   const double z = Height();
   const SafetyConfig& sc = config_.safety;
+  if (std::isfinite(nmpc_start_)) {  // neighbours leaving the formation (formation_ties.hpp)
+    std::array<TieView, kMaxNeighbours> views;
+    for (std::size_t j = 0; j < presence_.size(); ++j) {
+      const Presence& p = presence_[j];
+      const auto& x = estimates_.neighbours[j];
+      views[j] = {x[2], config_.neighbours[j].desired.z(),
+                  config_.neighbours[j].vehicle == config_.leader_vehicle,
+                  std::isfinite(p.seen) && t - p.seen <= sc.neighbour_timeout &&
+                      x.head<3>().allFinite() && !(p.landed && !p.active)};
+    }
+    departure_.Update(t, views.data(), static_cast<int>(presence_.size()));
+  }
+  UpdateLeaderSeenDown(t, z);
   for (std::size_t j = 0; j < presence_.size(); ++j) {
     Presence& p = presence_[j];
     const bool fresh = std::isfinite(p.seen) && t - p.seen <= sc.neighbour_timeout;
+    const bool departed = departure_.departed(static_cast<int>(j));
     const double zj = z + estimates_.neighbours[j][2];
     const bool grounded = std::isfinite(zj) && zj < config_.ground_height + kGroundedMargin;
     if (!grounded) {
@@ -956,11 +974,12 @@ void VehicleController::UpdateNeighbourPresence(double t) {
       p.grounded_since = t;
     }
     const bool landed = grounded && t - p.grounded_since >= sc.neighbour_timeout;
-    if (p.active && (!fresh || landed) && std::isfinite(nmpc_start_)) {
+    if (p.active && (!fresh || landed || departed) && std::isfinite(nmpc_start_)) {
+      if (fresh && !landed) ++neighbour_departures_;
       p.active = false;
       p.landed = landed;
       p.airborne_since = kNaN;
-    } else if (!p.active && fresh && !grounded) {
+    } else if (!p.active && fresh && !grounded && !departed) {
       if (!std::isfinite(p.airborne_since)) p.airborne_since = t;
       const bool run = p.seen - p.seen_since >= sc.neighbour_reacquire_time;
       const bool airborne = !p.landed || t - p.airborne_since >= sc.neighbour_reacquire_time;
@@ -969,6 +988,39 @@ void VehicleController::UpdateNeighbourPresence(double t) {
       p.airborne_since = kNaN;
     }
   }
+}
+
+// The leader seen on the ground for neighbour_timeout in a tracking slot (a follower that
+// does not have it as a formation neighbour but senses it; the same test as the neighbours').
+void VehicleController::UpdateLeaderSeenDown(double t, double z) {
+  leader_seen_down_ = false;
+  if (config_.leader || config_.leader_vehicle < 0) return;
+  for (std::size_t k = 0; k < tracks_.size(); ++k) {
+    Presence& p = tracks_[k].presence;
+    if (tracks_[k].vehicle != config_.leader_vehicle) continue;
+    const double zl = z + estimates_.others[k][2];
+    const bool fresh = std::isfinite(p.seen) && t - p.seen <= config_.safety.neighbour_timeout;
+    if (!(fresh && std::isfinite(zl) && zl < config_.ground_height + kGroundedMargin)) {
+      p.grounded_since = kNaN;
+    } else if (!std::isfinite(p.grounded_since)) {
+      p.grounded_since = t;
+    }
+    leader_seen_down_ =
+        leader_seen_down_ || (std::isfinite(p.grounded_since) &&
+                              t - p.grounded_since >= config_.safety.neighbour_timeout);
+  }
+}
+
+// Every formation tie to the leader lost (TieLoss): the leader down, or every neighbour
+// landed or gone from the formation.
+RecoveryReason VehicleController::TieLossNow() const {
+  std::array<TieState, kMaxNeighbours> ties;
+  for (std::size_t j = 0; j < presence_.size(); ++j) {
+    const Presence& p = presence_[j];
+    ties[j] = {config_.neighbours[j].vehicle == config_.leader_vehicle, p.active,
+               p.landed && !p.active, departure_.departed(static_cast<int>(j))};
+  }
+  return TieLoss(ties.data(), static_cast<int>(presence_.size()), leader_seen_down_);
 }
 
 // Raw motion-capture pose and its filtered rate, kept apart from the EKF: the failsafe and
@@ -1239,8 +1291,10 @@ bool VehicleController::ClearLandingSite(double t, ControlOutput* out) {
       if (away.norm() < 1e-3) away = Vec<2>(1.0, 0.0);
       hold_xy_ = o + (r + kLandingSiteClearance) * away.normalized();
       ++landing_site_shifts_;
-      out->recovery = RecoveryAction::kShiftLandingSite;
-      out->recovery_reason = RecoveryReason::kVehicleBelow;
+      if (out->recovery == RecoveryAction::kNone) {  // a kLand of the same step is kept
+        out->recovery = RecoveryAction::kShiftLandingSite;
+        out->recovery_reason = RecoveryReason::kVehicleBelow;
+      }
     }
     if (x.head<2>().norm() < r && -x[2] < 2.0 * r) wait = true;
   };
@@ -1252,6 +1306,19 @@ bool VehicleController::ClearLandingSite(double t, ControlOutput* out) {
       check(estimates_.others[k], tracks_[k].presence.seen);
   }
   return wait;
+}
+
+// PID landing from here: the height held from where it is, the position from the own
+// estimate, the command blended from the last one.
+void VehicleController::BeginLanding(double t, double z) {
+  phase_ = FlightPhase::kLanding;
+  phase_start_ = t;
+  contact_since_ = kNaN;
+  z_ref_ = std::isfinite(z) ? z : config_.takeoff_height;
+  hold_xy_ = estimates_.own.position.head<2>();
+  pid_.Reset(last_command_[0]);
+  blend_from_ = last_command_;
+  blend_start_ = t;
 }
 
 ControlOutput VehicleController::Step(double t) {
@@ -1283,15 +1350,16 @@ ControlOutput VehicleController::Step(double t) {
     height_error_lp_ = kNaN;
     pid_.Reset(config_.params.mass * kGravity);
   }
-  if (phase_ == FlightPhase::kNmpc && t >= config_.landing_time) {
-    phase_ = FlightPhase::kLanding;
-    phase_start_ = t;
-    contact_since_ = kNaN;
-    z_ref_ = std::isfinite(z) ? z : h;
-    hold_xy_ = own.position.head<2>();
-    pid_.Reset(last_command_[0]);
-    blend_from_ = last_command_;
-    blend_start_ = t;
+  if (phase_ == FlightPhase::kNmpc && t >= config_.landing_time) BeginLanding(t, z);
+  // A follower without a formation tie to the leader lands where it is (docs/safety.md).
+  if (phase_ == FlightPhase::kNmpc && !config_.leader) {
+    const RecoveryReason lost = TieLossNow();
+    if (lost != RecoveryReason::kNone) {
+      tie_loss_ = lost;
+      BeginLanding(t, z);
+      out.recovery = RecoveryAction::kLand;
+      out.recovery_reason = lost;
+    }
   }
 
   switch (phase_) {

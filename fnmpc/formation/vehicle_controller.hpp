@@ -13,6 +13,7 @@
 #include "fnmpc/estimation/vehicle_ekf.hpp"
 #include "fnmpc/formation/controller_settings.hpp"
 #include "fnmpc/formation/neighbour_acceleration.hpp"
+#include "fnmpc/formation/formation_ties.hpp"
 #include "fnmpc/formation/neighbour_limits.hpp"
 #include "fnmpc/formation/neighbour_plan.hpp"
 #include "fnmpc/formation/nmpc_weights.hpp"
@@ -60,6 +61,9 @@ struct ControllerConfig : ControllerSettings {
   /// collision avoidance, in the max_tracked - (neighbour count) slots left; false: only the
   /// formation neighbours are tracked and avoided.
   bool track_others = false;
+  /// Vehicle index of the formation's leader (-1: unknown). A follower checks its neighbours
+  /// against it (NeighbourDeparture) and lands when it is down (TieLoss).
+  int leader_vehicle = -1;
   // Follower only.
   std::vector<NeighbourTarget> neighbours;               ///< 1 to kMaxNeighbours, distinct
   ocp::TargetFrame frame = ocp::TargetFrame::kInertial;  ///< frame of `desired`
@@ -162,6 +166,14 @@ class VehicleController {
   [[nodiscard]] long landing_site_shifts() const { return landing_site_shifts_; }
   /// Follower: whether neighbour j (configuration order) is in the cost.
   [[nodiscard]] bool neighbour_active(std::size_t j) const { return presence_.at(j).active; }
+  /// Follower: whether neighbour j left the formation (NeighbourDeparture, docs/safety.md).
+  [[nodiscard]] bool neighbour_departed(std::size_t j) const {
+    return departure_.departed(static_cast<int>(j));
+  }
+  /// Follower: times a neighbour left its cost because it left the formation.
+  [[nodiscard]] long neighbour_departures() const { return neighbour_departures_; }
+  /// Follower: why it landed for want of a formation tie to the leader (kNone: it did not).
+  [[nodiscard]] RecoveryReason tie_loss() const { return tie_loss_; }
   /// Tracking slots for the other vehicles in view (max_tracked minus the formation
   /// neighbours, or 0 without track_others).
   [[nodiscard]] int other_slots() const { return static_cast<int>(tracks_.size()); }
@@ -195,6 +207,9 @@ class VehicleController {
   void Blend(double t, double* thrust, double* roll, double* pitch) const;
   bool EstimateUsable(double t) const;
   void UpdateNeighbourPresence(double t);
+  void UpdateLeaderSeenDown(double t, double z);
+  [[nodiscard]] RecoveryReason TieLossNow() const;
+  void BeginLanding(double t, double z);
   void EnterFailsafe(double t, RecoveryReason reason);
   bool PidEstimateLost(double t, double z, ControlOutput* out);
   bool TouchedDown(double t, double z, double vz);
@@ -281,6 +296,10 @@ class VehicleController {
   NeighbourPlans plans_;            // cooperative: the formation neighbours' latest plans
   double plan_time_ = kNaN;         // time of the last NMPC step (MakePlan) [s]
   Vec3 plan_disturbance_ = Vec3::Zero();  // its predicted external acceleration [m/s^2]
+  NeighbourDeparture departure_;    // neighbours leaving the formation (formation_ties.hpp)
+  bool leader_seen_down_ = false;   // the leader on the ground in a tracking slot
+  RecoveryReason tie_loss_ = RecoveryReason::kNone;
+  long neighbour_departures_ = 0;
 };
 
 }  // namespace fnmpc::formation

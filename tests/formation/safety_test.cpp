@@ -298,6 +298,83 @@ TEST(SafetyTest, FollowerDoesNotFollowAFallingNeighbourIntoTheGround) {
   EXPECT_TRUE(c.neighbour_active(1));
 }
 
+/// A follower in formation with its leader (vehicle 0) and vehicle 2, all at about 1.1 m;
+/// from t_fail vehicle 2 descends at 0.7 m/s onto the ground (a killed controller's
+/// autopilot landing it). Returns the follower's largest sink below its height at t_fail [m]
+/// and sets *departed_at to when vehicle 2 left its cost for leaving the formation (NaN:
+/// never) and *dropped_at to when it left the cost for any reason.
+double SinkBehindDescendingNeighbour(const ControllerConfig& cfg, double t_fail,
+                                     double* departed_at, double* dropped_at) {
+  VehicleController c(cfg);
+  Plant plant;
+  const Vec3 p0(1.3, -0.8, 1.1);
+  Vec3 p2(-0.7, 0.2, 1.1);
+  std::vector<estimation::NeighbourStateVec> nb(2);
+  double z_fail = kNaN, sink = 0.0;
+  *departed_at = *dropped_at = kNaN;
+  for (double t = 0.0; t <= t_fail + 6.0; t += kTs) {
+    double v2 = 0.0;
+    if (t >= t_fail && p2.z() > kGround) {
+      v2 = -0.7;
+      p2.z() = std::max(kGround, p2.z() + v2 * kTs);
+    }
+    estimation::VehicleEstimate e = plant.Estimate(t);
+    e.position.z() -= kGround;
+    nb[0].setZero();
+    nb[0].head<3>() = p0 - plant.x.head<3>();
+    nb[1].setZero();
+    nb[1].head<3>() = p2 - plant.x.head<3>();
+    nb[1][5] = v2;
+    const ControlOutput o = c.ControlWithEstimates(t, e, nb);
+    EXPECT_FALSE(o.fallback) << "t = " << t;
+    plant.Step(o);
+    if (t >= t_fail) {
+      if (std::isnan(z_fail)) z_fail = plant.x[2];
+      sink = std::max(sink, z_fail - plant.x[2]);
+      if (c.neighbour_departed(1) && std::isnan(*departed_at)) *departed_at = t;
+      if (!c.neighbour_active(1) && std::isnan(*dropped_at)) *dropped_at = t;
+    }
+  }
+  // The leader stays in the cost, and the follower flies on with it (no landing).
+  EXPECT_TRUE(c.neighbour_active(0));
+  EXPECT_EQ(c.phase(), FlightPhase::kNmpc);
+  EXPECT_EQ(c.tie_loss(), RecoveryReason::kNone);
+  return sink;
+}
+
+TEST(SafetyTest, NeighbourDescendingOutOfTheFormationLeavesTheCostBeforeItLands) {
+  // Given a follower with its leader and vehicle 2 (kill-follower scenario: follower2's
+  // autopilot lands it after its controller died), the leader known as vehicle 0
+  ControllerConfig cfg = BaseConfig(false);
+  cfg.neighbours = {{0, Vec3(1.0, -1.0, 0.0)}, {2, Vec3(-1.0, 0.0, 0.0)}};
+  cfg.leader_vehicle = 0;
+  const double t_fail = 8.0;
+  // When vehicle 2 descends at 0.7 m/s from t_fail
+  double departed = kNaN, dropped = kNaN;
+  const double sink = SinkBehindDescendingNeighbour(cfg, t_fail, &departed, &dropped);
+  // and the same without the departure rule (it leaves only once seen on the ground)
+  ControllerConfig off = cfg;
+  off.safety.neighbour_departure_height = 0.0;
+  double departed_off = kNaN, dropped_off = kNaN;
+  const double sink_off = SinkBehindDescendingNeighbour(off, t_fail, &departed_off, &dropped_off);
+  std::printf(
+      "[   INFO   ] departure at %.2f s, sink %.3f m; without: dropped at %.2f s, sink %.3f m\n",
+      departed - t_fail, sink, dropped_off - t_fail, sink_off);
+  // Then it leaves the cost once 0.5 m below its place relative to the leader (0.71 s) and
+  // that held for 0.3 s, long before it is on the ground
+  ASSERT_TRUE(std::isfinite(departed));
+  EXPECT_NEAR(departed - t_fail, 0.5 / 0.7 + cfg.safety.neighbour_departure_time, 2 * kTs);
+  EXPECT_NEAR(dropped, departed, 1e-9);
+  EXPECT_TRUE(std::isnan(departed_off));
+  EXPECT_GT(dropped_off - t_fail, 1.0 / 0.7 + cfg.safety.neighbour_timeout - 0.3);
+  // and the follower, averaging its two neighbours, sinks about half their vertical
+  // discrepancy at the departure (0.5 m plus 0.7 m/s over the departure time and a step),
+  // no longer half the whole descent.
+  const double h = cfg.safety.neighbour_departure_height;
+  EXPECT_LT(sink, 0.5 * (h + 0.7 * (cfg.safety.neighbour_departure_time + kTs)) + 0.03);
+  EXPECT_LT(sink, sink_off - 0.1);
+}
+
 TEST(SafetyTest, FailsafeHoldIgnoresMotionCaptureOutliers) {
   // Given a leader hovering under the NMPC with motion capture at 60 Hz
   ControllerConfig cfg = BaseConfig(true);

@@ -151,6 +151,35 @@ TEST(FaultFlightTest, LeaderLandsClearOfAFallenFollowerBelowIt) {
   EXPECT_TRUE(s["vehicles"]["side"]["landed_safely"].get<bool>());
 }
 
+TEST(FaultFlightTest, FollowersLandWhenTheirLeaderIsDown) {
+  // Given the short triangle (landing scheduled at 23 s) with the leader's controller killed
+  // in the hover at 12 s: its autopilot lands it (fault campaign run 173: the leader's
+  // failsafe landed it, and the two followers kept a formation with each other only, with
+  // nothing to anchor it, drifting up to 2.3 m until their landing had not ended at 30 s),
+  config::ScenarioConfig sc = ShortTriangle();
+  sc.faults.kill_controller = Fault(sc, "leader", 12.0);
+  const json s = RunFaulty(sc, "leader-down");
+  ASSERT_TRUE(s["faults"]["kill_controller"]["touchdown_time_s"].is_number()) << s.dump(2);
+  const double leader_down = s["faults"]["kill_controller"]["touchdown_time_s"].get<double>();
+  // Then each follower, seeing its leader on the ground for neighbour_timeout, lands where it
+  // is (logged with its reason, counted), long before the scheduled landing,
+  EXPECT_EQ(s["leaderless_landings"].get<long>(), 2) << s.dump(2);
+  for (const char* v : {"follower1", "follower2"}) {
+    const json& j = s["vehicles"][v];
+    EXPECT_EQ(j["leaderless_landing_reason"], "leader_down") << j.dump(2);
+    ASSERT_TRUE(j["leaderless_landing_time_s"].is_number()) << j.dump(2);
+    const double t_land = j["leaderless_landing_time_s"].get<double>();
+    EXPECT_GE(t_land, leader_down) << j.dump(2);
+    EXPECT_LT(t_land, leader_down + sc.safety.neighbour_timeout + 1.0) << j.dump(2);
+    ASSERT_TRUE(j["touchdown_time_s"].is_number()) << j.dump(2);
+    EXPECT_LT(j["touchdown_time_s"].get<double>(), config::LandingTime(sc, 1)) << j.dump(2);
+    // safely, and no failsafe was needed.
+    EXPECT_TRUE(j["landed_safely"].get<bool>()) << j.dump(2);
+    EXPECT_EQ(j["failsafes"].get<long>(), 0) << j.dump(2);
+  }
+  EXPECT_TRUE(s["faults"]["landed_safely_except_downed"].get<bool>()) << s.dump(2);
+}
+
 TEST(FaultFlightTest, InjectedSolverFailuresReinitialiseAndMeasurementFaultsAreCounted) {
   // Given the short triangle with 30 % of the NMPC steps forced to fall back, a 1 s mocap
   // dropout window on the leader and 1 % outliers of size 0.2,
