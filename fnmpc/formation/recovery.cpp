@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "fnmpc/estimation/ekf_math.hpp"
+
 namespace fnmpc::formation {
 
 void RecoveryConfig::Validate() const {
@@ -37,9 +39,18 @@ void SafetyConfig::Validate() const {
     fail("neighbour_departure_time must be >= 0 and finite");
   if (!(collision_radius >= 0.0 && collision_radius <= 10.0))
     fail("collision_radius must be in [0, 10] m");
+  if (!(collision_confidence >= 0.5 && collision_confidence < 1.0))
+    fail("collision_confidence must be in [0.5, 1)");
   if (!(injected_failure_rate >= 0.0 && injected_failure_rate <= 1.0))
     fail("injected_failure_rate must be in [0, 1]");
   recovery.Validate();
+}
+
+// P(Z <= k) = p for a standard normal Z and k >= 0 is P(Z^2 <= k^2) = 2p - 1: the
+// chi-square(1) quantile of 2p - 1.
+double CollisionSigmas(const SafetyConfig& s) {
+  const double p = 2.0 * s.collision_confidence - 1.0;
+  return p > 0.0 ? std::sqrt(estimation::Chi2Quantile(p, 1)) : 0.0;
 }
 
 std::string_view ToString(RecoveryAction a) {

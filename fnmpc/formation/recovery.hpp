@@ -54,6 +54,9 @@ struct SafetyConfig {
   double neighbour_departure_height = 0.5;
   double neighbour_departure_time = 0.3;
   double collision_radius = 0.45;
+  /// Probability with which the obstacle's estimate keeps r_min (chance constraint, see
+  /// CollisionSigmas); 0.5: no margin.
+  double collision_confidence = 0.95;
   RecoveryConfig recovery;
 
   /// The fields a scenario sets (block `safety:`), with their meaning; the fault injection
@@ -82,6 +85,12 @@ struct SafetyConfig {
              "[m] r_min: soft minimum CoM distance to every vehicle the relative sensor sees, "
              "in the OCP (0: off); default twice the reference vehicle's arm length (0.225 m, "
              "rotor hubs apart: add propeller clearance for side-by-side flight)");
+    a->Visit("collision_confidence", &collision_confidence,
+             Finite().AtLeast(0.5, "").Below(1.0, ""),
+             "chance constraint of the collision avoidance: each predicted vehicle keeps r_min "
+             "with this probability under its estimate's Gaussian uncertainty, a margin of "
+             "Φ⁻¹(p) σ(t) along the separating normal with σ(t)² from the relative estimate's "
+             "covariance at constant velocity (docs/safety.md); 0.5: no margin");
     a->Nested("recovery", &recovery);
   }
   /// Fault injection (scenario `faults.solver_failures`, docs/scenarios.md), off by default:
@@ -94,6 +103,11 @@ struct SafetyConfig {
   /// Throws std::invalid_argument naming the field on an invalid value.
   void Validate() const;
 };
+
+/// The one-sided standard-normal quantile Phi^-1(collision_confidence) [-]: the margin of
+/// the collision constraint in standard deviations of the obstacle's predicted position
+/// along the separating normal (0 at 0.5).
+double CollisionSigmas(const SafetyConfig& s);
 
 /// Whether the NMPC step of `vehicle` at time t [s] (sample time ts [s]) is a forced
 /// fallback: a counter-based draw (splitmix64 of seed, vehicle and step index), so the

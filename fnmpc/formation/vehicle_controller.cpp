@@ -148,12 +148,27 @@ struct NmpcInput {
   // velocity; slots beyond `obstacles` are unused.
   std::array<Vec3, kObstacleSlots> obstacle_rel{}, obstacle_vel{};
   std::array<Vec3, kObstacleSlots> obstacle_normal{};  // unit, from self towards the obstacle
+  // kappa^2 n'P n of the estimate's position, position-velocity and velocity blocks along
+  // the normal (ObstacleAt); zero for an estimate taken as exact.
+  std::array<Vec3, kObstacleSlots> obstacle_spread{};
   int obstacles = 0;
   // Fault injection: skip the solve and apply the time-shifted plan, as on a solver error.
   bool forced_failure = false;
   // Compensation::kCooperative, follower: the neighbours' latest plans (else null).
   const NeighbourPlans* plans = nullptr;
 };
+
+/// Obstacle o's position t [s] ahead for the collision rows: its constant-velocity
+/// prediction moved towards the observer along the separating normal n by the chance
+/// constraint's margin kappa sigma(t), sigma(t)^2 = n'(P_pp + 2 t P_pv + t^2 P_vv) n the
+/// prediction's variance from the estimate's covariance. n.(c - kappa sigma n - p) >= r_min is
+/// n.(c - p) >= r_min + kappa sigma: under a Gaussian estimate the true obstacle keeps r_min
+/// along n with probability Phi(kappa) (SafetyConfig::collision_confidence; docs/safety.md).
+Vec3 ObstacleAt(const NmpcInput& in, int o, double t) {
+  const Vec3& s = in.obstacle_spread[o];
+  const double margin = std::sqrt(std::max(0.0, s[0] + 2.0 * t * s[1] + t * t * s[2]));
+  return in.obstacle_rel[o] + t * in.obstacle_vel[o] - margin * in.obstacle_normal[o];
+}
 
 struct NmpcStep {
   Vec3 u = Vec3::Constant(kNaN);
@@ -362,8 +377,7 @@ class LeaderCore final : public NmpcCore {
           Base::SetUnused(o, &p);
           continue;
         }
-        p.segment<3>(Base::ParamObstacle(o)) =
-            in.position + in.obstacle_rel[o] + (k * ts) * in.obstacle_vel[o];
+        p.segment<3>(Base::ParamObstacle(o)) = in.position + ObstacleAt(in, o, k * ts);
         p.segment<3>(Base::ParamNormal(o)) = in.obstacle_normal[o];
       }
       solver_.SetParameters(k, p);
@@ -626,7 +640,7 @@ class FollowerCore final : public NmpcCore {
           Base::SetUnused(o, &p);
           continue;
         }
-        p.segment<3>(Base::ParamObstacle(o)) = in.obstacle_rel[o] + (k * ts) * in.obstacle_vel[o];
+        p.segment<3>(Base::ParamObstacle(o)) = ObstacleAt(in, o, k * ts);
         p.segment<3>(Base::ParamNormal(o)) = in.obstacle_normal[o];
       }
       if (height_known) {
@@ -755,6 +769,7 @@ VehicleController::VehicleController(const ControllerConfig& config)
       wake_(config.params),
       pid_(config.pid, config.params.mass),
       ladder_(config.safety.recovery),
+      collision_sigmas_(CollisionSigmas(config.safety)),
       departure_(config.safety.neighbour_departure_height, config.safety.neighbour_departure_time,
                  config.safety.neighbour_reacquire_time) {
   for (const NeighbourTarget& n : config_.neighbours) {
@@ -782,6 +797,8 @@ VehicleController::VehicleController(const ControllerConfig& config)
   const std::size_t nn = config_.neighbours.size();
   estimates_.neighbours.assign(nn, estimation::NeighbourStateVec::Constant(kNaN));
   estimates_.others.assign(tracks_.size(), estimation::NeighbourStateVec::Constant(kNaN));
+  estimates_.neighbour_covariances.assign(nn, estimation::NeighbourStateCov::Zero());
+  estimates_.other_covariances.assign(tracks_.size(), estimation::NeighbourStateCov::Zero());
   presence_.assign(nn, Presence{});
   // A gap of more than two missed steps restarts the derivative.
   neighbour_acceleration_.assign(nn, AccelerationEstimate(config_.neighbour_acceleration_filter,
@@ -1099,7 +1116,9 @@ void VehicleController::NearestObstacles(double t, Input* in) const {
   if (!(config_.safety.collision_radius > 0.0)) return;
   const double timeout = config_.safety.neighbour_timeout;
   std::array<double, kObstacleSlots> dist{};
-  auto offer = [&](const estimation::NeighbourStateVec& x, double seen) {
+  const double kappa2 = collision_sigmas_ * collision_sigmas_;
+  auto offer = [&](const estimation::NeighbourStateVec& x, const estimation::NeighbourStateCov& cov,
+                   double seen) {
     if (!x.allFinite() || !std::isfinite(seen) || t - seen > timeout) return;
     const double d = x.head<3>().norm();
     int pos = in->obstacles;
@@ -1115,6 +1134,7 @@ void VehicleController::NearestObstacles(double t, Input* in) const {
       in->obstacle_rel[pos] = in->obstacle_rel[pos - 1];
       in->obstacle_vel[pos] = in->obstacle_vel[pos - 1];
       in->obstacle_normal[pos] = in->obstacle_normal[pos - 1];
+      in->obstacle_spread[pos] = in->obstacle_spread[pos - 1];
     }
     dist[pos] = d;
     in->obstacle_rel[pos] = x.head<3>();
@@ -1127,36 +1147,46 @@ void VehicleController::NearestObstacles(double t, Input* in) const {
     const Vec3 left = h > 1e-6 ? Vec3(-rel.y() / h, rel.x() / h, 0.0) : Vec3::Zero();
     const Vec3 n = rel + kPassingShift * config_.safety.collision_radius * left;
     in->obstacle_normal[pos] = n.norm() > 1e-9 ? Vec3(n.normalized()) : Vec3(0.0, 0.0, 1.0);
+    // The chance constraint's margin (ObstacleAt); a non-finite covariance gives none.
+    const Vec3& u = in->obstacle_normal[pos];
+    const Vec3 spread(u.dot(cov.block<3, 3>(0, 0) * u), u.dot(cov.block<3, 3>(0, 3) * u),
+                      u.dot(cov.block<3, 3>(3, 3) * u));
+    in->obstacle_spread[pos] = spread.allFinite() ? Vec3(kappa2 * spread) : Vec3(Vec3::Zero());
   };
   for (std::size_t j = 0; j < estimates_.neighbours.size(); ++j) {
-    offer(estimates_.neighbours[j], presence_[j].seen);
+    offer(estimates_.neighbours[j], estimates_.neighbour_covariances[j], presence_[j].seen);
   }
   for (std::size_t k = 0; k < tracks_.size(); ++k)
-    offer(estimates_.others[k], tracks_[k].presence.seen);
+    offer(estimates_.others[k], estimates_.other_covariances[k], tracks_[k].presence.seen);
 }
 
 ControlOutput VehicleController::Control(double t) {
   estimates_.own = ekf_.initialized() ? ekf_.Estimate(t) : estimation::VehicleEstimate{};
   const estimation::VehicleEstimate& own = estimates_.own;
   // Every tracked vehicle predicted to t (NaN while its filter has nothing to go on).
-  const auto predict = [&](estimation::NeighbourEkf& f, estimation::NeighbourStateVec& out) {
+  const auto predict = [&](estimation::NeighbourEkf& f, estimation::NeighbourStateVec& out,
+                           estimation::NeighbourStateCov& cov) {
     if (f.initialized() && own.valid && own.velocity.allFinite()) {
       f.PredictTo(t, own.velocity);
-      out = f.StateAt(t, own.velocity);
+      const estimation::NeighbourEstimate e = f.EstimateAt(t, own.velocity);
+      out = e.x;
+      cov = e.covariance;
     } else {
       out.setConstant(kNaN);
+      cov.setZero();
     }
   };
   for (std::size_t j = 0; j < neighbour_ekfs_.size(); ++j) {
-    predict(neighbour_ekfs_[j], estimates_.neighbours[j]);
+    predict(neighbour_ekfs_[j], estimates_.neighbours[j], estimates_.neighbour_covariances[j]);
   }
   for (std::size_t k = 0; k < tracks_.size(); ++k) {
     Track& track = tracks_[k];
     if (track.vehicle >= 0 && TrackLost(track, t)) track.vehicle = -1;  // out of view: free
     if (track.vehicle >= 0) {
-      predict(track.ekf, estimates_.others[k]);
+      predict(track.ekf, estimates_.others[k], estimates_.other_covariances[k]);
     } else {
       estimates_.others[k].setConstant(kNaN);
+      estimates_.other_covariances[k].setZero();
     }
   }
   UpdateNeighbourPresence(t);
@@ -1196,11 +1226,15 @@ std::vector<Vec3> VehicleController::PredictedPositions() const {
 
 ControlOutput VehicleController::ControlWithEstimates(
     double t, const estimation::VehicleEstimate& own,
-    const std::vector<estimation::NeighbourStateVec>& neighbours) {
+    const std::vector<estimation::NeighbourStateVec>& neighbours,
+    const std::vector<estimation::NeighbourStateCov>* covariances) {
   estimates_.own = own;
   for (std::size_t j = 0; j < estimates_.neighbours.size(); ++j) {
     estimates_.neighbours[j] =
         j < neighbours.size() ? neighbours[j] : estimation::NeighbourStateVec::Constant(kNaN);
+    estimates_.neighbour_covariances[j] = covariances != nullptr && j < covariances->size()
+                                              ? (*covariances)[j]
+                                              : estimation::NeighbourStateCov::Zero();
     // Given estimates count as fresh measurements of the neighbours they describe.
     if (estimates_.neighbours[j].allFinite()) {
       presence_[j].Accept(t, config_.safety.neighbour_reacquire_time);

@@ -119,6 +119,9 @@ struct ControllerEstimates {
   /// Per tracking slot of the other vehicles (VehicleController::tracked_vehicle): its
   /// estimate, NaN while the slot is free or its filter has nothing to go on.
   std::vector<estimation::NeighbourStateVec> others;
+  /// Covariances of `neighbours` and `others` (zero when not known: given estimates taken as
+  /// exact); the collision avoidance's margin (SafetyConfig::collision_confidence).
+  std::vector<estimation::NeighbourStateCov> neighbour_covariances, other_covariances;
 };
 
 class NmpcCore;  // leader or reduced follower solver (vehicle_controller.cpp)
@@ -146,9 +149,12 @@ class VehicleController {
   /// The same step with the estimates given instead of taken from the filters (own state
   /// in {n} for the leader, {m} for a follower; neighbours in NeighbourStateIndex layout, one
   /// per configured neighbour). For tests and external estimators; NaN entries are allowed
-  /// and never become a command.
-  ControlOutput ControlWithEstimates(double t, const estimation::VehicleEstimate& own,
-                                     const std::vector<estimation::NeighbourStateVec>& neighbours);
+  /// and never become a command. `covariances` (optional, one per neighbour): those of the
+  /// neighbour estimates, else they count as exact.
+  ControlOutput ControlWithEstimates(
+      double t, const estimation::VehicleEstimate& own,
+      const std::vector<estimation::NeighbourStateVec>& neighbours,
+      const std::vector<estimation::NeighbourStateCov>* covariances = nullptr);
 
   [[nodiscard]] FlightPhase phase() const { return phase_; }
   [[nodiscard]] const ControllerConfig& config() const { return config_; }
@@ -280,6 +286,7 @@ class VehicleController {
   long fallbacks_ = 0;
   ControllerEstimates estimates_;
   RecoveryLadder ladder_;
+  double collision_sigmas_ = 0.0;  // CollisionSigmas(config_.safety)
   // Raw motion-capture pose [m, rad], its stamp [s] and filtered rate [m/s]; start of a
   // disagreement between that rate and the EKF's velocity [s].
   double raw_z_ = kNaN, raw_z_stamp_ = kNaN, raw_yaw_ = kNaN;

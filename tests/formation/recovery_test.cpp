@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <stdexcept>
 
 namespace fnmpc::formation {
@@ -89,6 +90,29 @@ TEST(RecoveryLadderTest, InvalidConfigNamesTheField) {
   c = Config();
   c.estimate_timeout = 0.0;
   EXPECT_THROW(RecoveryLadder{c}, std::invalid_argument);
+}
+
+TEST(SafetyConfigTest, CollisionSigmasAreTheNormalQuantileOfTheConfidence) {
+  // Phi^-1 of the one-sided confidence (tables: 0.8413 -> 1, 0.95 -> 1.6449, 0.975 -> 1.9600)
+  SafetyConfig s;
+  s.collision_confidence = 0.5;
+  EXPECT_EQ(CollisionSigmas(s), 0.0);
+  s.collision_confidence = 0.841345;
+  EXPECT_NEAR(CollisionSigmas(s), 1.0, 1e-4);
+  s.collision_confidence = 0.95;
+  EXPECT_NEAR(CollisionSigmas(s), 1.6449, 1e-4);
+  s.collision_confidence = 0.975;
+  EXPECT_NEAR(CollisionSigmas(s), 1.9600, 1e-4);
+  // and a confidence outside [0.5, 1) is refused by name
+  for (const double bad : {0.4, 1.0, std::nan("")}) {
+    s.collision_confidence = bad;
+    try {
+      s.Validate();
+      FAIL() << "accepted collision_confidence = " << bad;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("collision_confidence"), std::string::npos);
+    }
+  }
 }
 
 }  // namespace
