@@ -7,8 +7,6 @@ namespace fnmpc::formation {
 
 NeighbourDeparture::NeighbourDeparture(double height, double time, double reacquire)
     : height_(height), time_(time), reacquire_(reacquire) {
-  below_since_.fill(kNaN);
-  back_since_.fill(kNaN);
   departed_.fill(false);
 }
 
@@ -43,28 +41,15 @@ void NeighbourDeparture::Update(double t, const TieView* views, int n) {
       if (anchors < 2) anchors = 0;  // one follower as reference: cannot tell which left
     }
     const bool known = anchors > 0 && views[j].available && std::isfinite(views[j].rel_z);
-    if (!departed_[sj]) {
-      back_since_[sj] = kNaN;
-      if (!(known && below)) {
-        below_since_[sj] = kNaN;
-        continue;
-      }
-      if (!std::isfinite(below_since_[sj])) below_since_[sj] = t;
-      if (t - below_since_[sj] >= time_ - 1e-9) {
-        departed_[sj] = true;
-        below_since_[sj] = kNaN;
-      }
-    } else {
-      // No anchor or no estimate: nothing tells it is back; it stays out.
-      if (!(known && back)) {
-        back_since_[sj] = kNaN;
-        continue;
-      }
-      if (!std::isfinite(back_since_[sj])) back_since_[sj] = t;
-      if (t - back_since_[sj] >= reacquire_ - 1e-9) {
-        departed_[sj] = false;
-        back_since_[sj] = kNaN;
-      }
+    // In the cost: out after `time` below. Departed: back after `reacquire` within (no
+    // anchor or no estimate: nothing tells it is back; it stays out). The other timer never
+    // runs: each is reset when its own transition happens.
+    const bool out = departed_[sj];
+    HeldFor& held = out ? back_[sj] : below_[sj];
+    held.Update(known && (out ? back : below), t);
+    if (held.For(t, (out ? reacquire_ : time_) - 1e-9)) {
+      departed_[sj] = !out;
+      held.Reset();
     }
   }
 }

@@ -3,6 +3,7 @@
 
 #include <array>
 
+#include "fnmpc/core/held_for.hpp"
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/formation/neighbour_limits.hpp"
 #include "fnmpc/formation/recovery.hpp"
@@ -46,7 +47,7 @@ class NeighbourDeparture {
 
  private:
   double height_, time_, reacquire_;
-  std::array<double, kMaxNeighbours> below_since_{}, back_since_{};
+  std::array<HeldFor, kMaxNeighbours> below_{}, back_{};  // j below, back (departed)
   std::array<bool, kMaxNeighbours> departed_{};
 };
 

@@ -104,12 +104,12 @@ RecoveryDecision RecoveryLadder::Update(double t, bool estimate_usable, bool fal
   if (failsafe_) return {};
   if (!estimate_usable) {
     // A re-initialisation needs an estimate: only the timer runs.
-    if (unusable_since_ < 0.0) unusable_since_ = t;
-    if (t - unusable_since_ >= config_.estimate_timeout)
+    unusable_.Start(t);
+    if (unusable_.For(t, config_.estimate_timeout))
       return Trigger(RecoveryReason::kEstimateUnusable);
     return {};
   }
-  unusable_since_ = -1.0;
+  unusable_.Reset();
   if (!fallback) {
     consecutive_fallbacks_ = 0;
     reinits_since_success_ = 0;

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <string_view>
 
+#include "fnmpc/core/held_for.hpp"
 #include "fnmpc/core/serialize.hpp"
 
 /// The NMPC's recovery ladder, after PX4's failsafe state machine: explicit states and
@@ -176,7 +177,7 @@ class RecoveryLadder {
   int consecutive_fallbacks_ = 0;
   int reinits_since_success_ = 0;
   long reinitialisations_ = 0;
-  double unusable_since_ = -1.0;  // < 0: estimate usable
+  HeldFor unusable_;  // the estimate unusable since
   bool failsafe_ = false;
 };
 

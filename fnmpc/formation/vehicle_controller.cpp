@@ -985,24 +985,20 @@ void VehicleController::UpdateNeighbourPresence(double t) {
     const bool departed = departure_.departed(static_cast<int>(j));
     const double zj = z + estimates_.neighbours[j][2];
     const bool grounded = std::isfinite(zj) && zj < config_.ground_height + kGroundedMargin;
-    if (!grounded) {
-      p.grounded_since = kNaN;
-    } else if (!std::isfinite(p.grounded_since)) {
-      p.grounded_since = t;
-    }
-    const bool landed = grounded && t - p.grounded_since >= sc.neighbour_timeout;
+    p.grounded.Update(grounded, t);
+    const bool landed = p.grounded.For(t, sc.neighbour_timeout);
     if (p.active && (!fresh || landed || departed) && std::isfinite(nmpc_start_)) {
       if (fresh && !landed) ++neighbour_departures_;
       p.active = false;
       p.landed = landed;
-      p.airborne_since = kNaN;
+      p.airborne.Reset();
     } else if (!p.active && fresh && !grounded && !departed) {
-      if (!std::isfinite(p.airborne_since)) p.airborne_since = t;
+      p.airborne.Start(t);
       const bool run = p.seen - p.seen_since >= sc.neighbour_reacquire_time;
-      const bool airborne = !p.landed || t - p.airborne_since >= sc.neighbour_reacquire_time;
+      const bool airborne = !p.landed || p.airborne.For(t, sc.neighbour_reacquire_time);
       if (run && airborne) p.active = true;
     } else if (grounded) {
-      p.airborne_since = kNaN;
+      p.airborne.Reset();
     }
   }
 }
@@ -1017,14 +1013,9 @@ void VehicleController::UpdateLeaderSeenDown(double t, double z) {
     if (tracks_[k].vehicle != config_.leader_vehicle) continue;
     const double zl = z + estimates_.others[k][2];
     const bool fresh = std::isfinite(p.seen) && t - p.seen <= config_.safety.neighbour_timeout;
-    if (!(fresh && std::isfinite(zl) && zl < config_.ground_height + kGroundedMargin)) {
-      p.grounded_since = kNaN;
-    } else if (!std::isfinite(p.grounded_since)) {
-      p.grounded_since = t;
-    }
-    leader_seen_down_ =
-        leader_seen_down_ || (std::isfinite(p.grounded_since) &&
-                              t - p.grounded_since >= config_.safety.neighbour_timeout);
+    p.grounded.Update(fresh && std::isfinite(zl) && zl < config_.ground_height + kGroundedMargin,
+                      t);
+    leader_seen_down_ = leader_seen_down_ || p.grounded.For(t, config_.safety.neighbour_timeout);
   }
 }
 
@@ -1078,19 +1069,14 @@ bool VehicleController::RawMocapFresh(double t) const {
 void VehicleController::CheckVelocityConsistency(double t) {
   const Vec3& v = estimates_.own.velocity;
   if (!RawMocapFresh(t) || !raw_v_.allFinite() || !v.allFinite()) {
-    velocity_mismatch_since_ = kNaN;
+    velocity_mismatch_.Reset();
     return;
   }
-  if ((v - raw_v_).cwiseAbs().maxCoeff() <= kVelocityMismatch) {
-    velocity_mismatch_since_ = kNaN;
-  } else if (!std::isfinite(velocity_mismatch_since_)) {
-    velocity_mismatch_since_ = t;
-  }
+  velocity_mismatch_.Update((v - raw_v_).cwiseAbs().maxCoeff() > kVelocityMismatch, t);
 }
 
 bool VehicleController::VelocityInconsistent(double t) const {
-  return std::isfinite(velocity_mismatch_since_) &&
-         t - velocity_mismatch_since_ >= kVelocityMismatchTime;
+  return velocity_mismatch_.For(t, kVelocityMismatchTime);
 }
 
 // The NMPC can run on the estimate: the own state is valid and finite and (follower) at
@@ -1269,7 +1255,7 @@ void VehicleController::EnterFailsafe(double t, RecoveryReason reason) {
   failsafe_reason_ = reason;
   phase_ = FlightPhase::kFailsafe;
   phase_start_ = t;
-  contact_since_ = kNaN;
+  contact_.Reset();
   const double z = FailsafeHeight(t);
   z_ref_ = std::isfinite(z) ? z : kNaN;
   pid_.Reset(std::isfinite(last_command_[0]) ? last_command_[0] : config_.params.mass * kGravity);
@@ -1292,12 +1278,8 @@ bool VehicleController::TouchedDown(double t, double z, double vz) {
   const bool settled = std::isfinite(vz) && std::abs(vz) < 0.1;
   const bool contact = std::isfinite(z) && z < ground + config_.touchdown_margin &&
                        z_ref_ < ground && (settled || z_ref_ <= ground - 0.3);
-  if (!contact) {
-    contact_since_ = kNaN;
-    return false;
-  }
-  if (!std::isfinite(contact_since_)) contact_since_ = t;
-  return t - contact_since_ >= kTouchdownConfirmTime - 1e-9;
+  contact_.Update(contact, t);
+  return contact_.For(t, kTouchdownConfirmTime - 1e-9);
 }
 
 // Landing clear of other vehicles: every sensed vehicle (formation neighbour or other, finite
@@ -1347,7 +1329,7 @@ bool VehicleController::ClearLandingSite(double t, ControlOutput* out) {
 void VehicleController::BeginLanding(double t, double z) {
   phase_ = FlightPhase::kLanding;
   phase_start_ = t;
-  contact_since_ = kNaN;
+  contact_.Reset();
   z_ref_ = std::isfinite(z) ? z : config_.takeoff_height;
   hold_xy_ = estimates_.own.position.head<2>();
   pid_.Reset(last_command_[0]);
@@ -1424,17 +1406,14 @@ ControlOutput VehicleController::Step(double t) {
                                ? height_error_lp_ + (e - height_error_lp_) * std::min(1.0, dt / tau)
                                : e;
       }
-      if (z_ref_ >= h && std::abs(z - h) < kAtHeightBand &&
-          std::abs(height_error_lp_) < kAtHeightTolerance) {
-        if (!std::isfinite(at_height_since_)) at_height_since_ = t;
-      } else {
-        at_height_since_ = kNaN;
-      }
+      at_height_.Update(z_ref_ >= h && std::abs(z - h) < kAtHeightBand &&
+                            std::abs(height_error_lp_) < kAtHeightTolerance,
+                        t);
       const bool neighbours_ok =
           std::all_of(estimates_.neighbours.begin(), estimates_.neighbours.end(),
                       [](const estimation::NeighbourStateVec& x) { return x.allFinite(); });
-      if (std::isfinite(at_height_since_) && t - at_height_since_ >= config_.hover_before_switch &&
-          neighbours_ok && last_command_.allFinite()) {
+      if (at_height_.For(t, config_.hover_before_switch) && neighbours_ok &&
+          last_command_.allFinite()) {
         // Smooth switch: the NMPC starts from the PID's last command (guess and blend).
         phase_ = FlightPhase::kNmpc;
         phase_start_ = t;

@@ -7,6 +7,7 @@
 #include <string_view>
 #include <vector>
 
+#include "fnmpc/core/held_for.hpp"
 #include "fnmpc/core/sensors.hpp"
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/estimation/neighbour_ekf.hpp"
@@ -235,8 +236,8 @@ class VehicleController {
   struct Presence {
     double seen = kNaN;            // stamp of the last accepted measurement [s]
     double seen_since = kNaN;      // start of the current run of acceptances [s]
-    double grounded_since = kNaN;  // [s], NaN: airborne (formation neighbours only)
-    double airborne_since = kNaN;  // [s], NaN: not (yet) airborne again
+    HeldFor grounded;              // seen on the ground (formation neighbours only)
+    HeldFor airborne;              // airborne again after landing
     bool active = true;            // formation neighbour in the cost
     bool landed = false;           // lost because seen on the ground
     /// Records an acceptance at `stamp`; a gap longer than `max_gap` starts a new run.
@@ -262,7 +263,7 @@ class VehicleController {
   double phase_start_ = 0.0;
   double nmpc_start_ = kNaN;
   double last_time_ = kNaN;
-  double at_height_since_ = kNaN;
+  HeldFor at_height_;              // take-off: at the take-off height
   double height_error_lp_ = kNaN;  // take-off: low-passed height error [m]
   // Take-off completion: low-passed height error within the tolerance (the former
   // every-sample band) and every sample within three times it, so the NMPC never takes over
@@ -274,7 +275,7 @@ class VehicleController {
   // when the phase starts; NaN = velocity damping only.
   Vec<2> hold_xy_ = Vec<2>::Constant(kNaN);
   double land_z0_ = kNaN;
-  double contact_since_ = kNaN;  // start of the current ground contact (TouchedDown) [s]
+  HeldFor contact_;  // the current ground contact (TouchedDown)
   long landing_site_shifts_ = 0;
   double voltage_ = kNaN;  // filtered battery voltage
   double voltage_stamp_ = kNaN;
@@ -287,12 +288,12 @@ class VehicleController {
   ControllerEstimates estimates_;
   RecoveryLadder ladder_;
   double collision_sigmas_ = 0.0;  // CollisionSigmas(config_.safety)
-  // Raw motion-capture pose [m, rad], its stamp [s] and filtered rate [m/s]; start of a
-  // disagreement between that rate and the EKF's velocity [s].
+  // Raw motion-capture pose [m, rad], its stamp [s] and filtered rate [m/s]; a disagreement
+  // between that rate and the EKF's velocity.
   double raw_z_ = kNaN, raw_z_stamp_ = kNaN, raw_yaw_ = kNaN;
   Vec3 raw_p_ = Vec3::Constant(kNaN), raw_v_ = Vec3::Constant(kNaN);
   int raw_rejected_in_row_ = 0;  // motion-capture samples off the raw track (outliers)
-  double velocity_mismatch_since_ = kNaN;
+  HeldFor velocity_mismatch_;
   RecoveryReason failsafe_reason_ = RecoveryReason::kNone;
   bool nmpc_started_ = false;
   bool reinit_pending_ = false;

@@ -188,6 +188,33 @@ TEST(SafetyTest, FailsafeDescentFromJustAboveTheGroundKeepsTheMotorsOnUntilConta
   std::printf("[   INFO   ] touchdown from 2 cm: %.3f m/s\n", plant.impact_vz);
 }
 
+/// The follower of the neighbour-loss tests below: in formation with its leader (vehicle 0)
+/// and vehicle 2, all hovering at about 1.1 m, where they start.
+ControllerConfig FollowerOfTwo() {
+  ControllerConfig cfg = BaseConfig(false);
+  cfg.neighbours = {{0, Vec3(1.0, -1.0, 0.0)}, {2, Vec3(-1.0, 0.0, 0.0)}};
+  return cfg;
+}
+const Vec3 kLeaderStart(1.3, -0.8, 1.1);
+const Vec3 kVehicle2Start(-0.7, 0.2, 1.1);
+
+/// What that follower senses at t: its own estimate (height above the ground) and, in *nb,
+/// its leader at p0 moving at v0 and vehicle 2 at p2 moving at v2 (relative positions from
+/// the plant's truth).
+estimation::VehicleEstimate SenseTwo(const Plant& plant, double t, const Vec3& p0, const Vec3& v0,
+                                     const Vec3& p2, const Vec3& v2,
+                                     std::vector<estimation::NeighbourStateVec>* nb) {
+  estimation::VehicleEstimate e = plant.Estimate(t);
+  e.position.z() -= kGround;
+  nb->resize(2);
+  for (std::size_t k = 0; k < 2; ++k) {
+    (*nb)[k].setZero();
+    (*nb)[k].head<3>() = (k == 0 ? p0 : p2) - plant.x.head<3>();
+    (*nb)[k].segment<3>(3) = k == 0 ? v0 : v2;
+  }
+  return e;
+}
+
 /// A follower hovering in formation with its leader (vehicle 0) and vehicle 2; at 8 s
 /// vehicle 2 comes down (a killed vehicle landed by its autopilot) 0.1 m beside the point
 /// under the follower; the follower lands at 12 s. Returns the smallest CoM distance to
@@ -197,26 +224,20 @@ struct LandingResult {
   std::vector<ControlOutput> out;
 };
 LandingResult LandBesideDownedVehicle(double collision_radius) {
-  ControllerConfig cfg = BaseConfig(false);
-  cfg.neighbours = {{0, Vec3(1.0, -1.0, 0.0)}, {2, Vec3(-1.0, 0.0, 0.0)}};
+  ControllerConfig cfg = FollowerOfTwo();
   cfg.safety.collision_radius = collision_radius;
   cfg.landing_time = 12.0;
   VehicleController c(cfg);
   Plant plant;
-  const Vec3 p0(1.3, -0.8, 1.1);
-  Vec3 p2(-0.7, 0.2, 1.1);
-  std::vector<estimation::NeighbourStateVec> nb(2);
+  Vec3 p2 = kVehicle2Start;
+  std::vector<estimation::NeighbourStateVec> nb;
   LandingResult r;
   for (double t = 0.0; t <= 22.0 && c.phase() != FlightPhase::kLanded; t += kTs) {
     if (t >= 8.0 && p2.z() > kGround) {
       p2 = Vec3(plant.x[0] + 0.08, plant.x[1] + 0.06, kGround);
     }
-    estimation::VehicleEstimate e = plant.Estimate(t);
-    e.position.z() -= kGround;
-    nb[0].setZero();
-    nb[0].head<3>() = p0 - plant.x.head<3>();
-    nb[1].setZero();
-    nb[1].head<3>() = p2 - plant.x.head<3>();
+    const estimation::VehicleEstimate e =
+        SenseTwo(plant, t, kLeaderStart, Vec3::Zero(), p2, Vec3::Zero(), &nb);
     r.out.push_back(c.ControlWithEstimates(t, e, nb));
     plant.Step(r.out.back());
     if (c.phase() == FlightPhase::kLanding || c.phase() == FlightPhase::kLanded)
@@ -257,13 +278,11 @@ TEST(SafetyTest, LandingMovesItsSiteClearOfAVehicleBelow) {
 TEST(SafetyTest, FollowerDoesNotFollowAFallingNeighbourIntoTheGround) {
   // Given a follower in formation with its leader (vehicle 0, desired at the same height) and
   // vehicle 2, all at about 1.1 m, its height known (the altitude bound applies)
-  ControllerConfig cfg = BaseConfig(false);
-  cfg.neighbours = {{0, Vec3(1.0, -1.0, 0.0)}, {2, Vec3(-1.0, 0.0, 0.0)}};
+  const ControllerConfig cfg = FollowerOfTwo();
   VehicleController c(cfg);
   Plant plant;
-  Vec3 p0(1.3, -0.8, 1.1), v0 = Vec3::Zero();
-  const Vec3 p2(-0.7, 0.2, 1.1);
-  std::vector<estimation::NeighbourStateVec> nb(2);
+  Vec3 p0 = kLeaderStart, v0 = Vec3::Zero();
+  std::vector<estimation::NeighbourStateVec> nb;
   double zmin = kInf, t_impact = kNaN;
   for (double t = 0.0; t <= 16.0; t += kTs) {
     // When the leader's motors stop at 8 s (fault campaign run 55): it falls freely onto the
@@ -276,14 +295,9 @@ TEST(SafetyTest, FollowerDoesNotFollowAFallingNeighbourIntoTheGround) {
       if (std::isnan(t_impact) && p0.z() <= kGround) t_impact = t;
     }
     const bool lost = t >= t_impact + cfg.safety.neighbour_timeout;
-    estimation::VehicleEstimate e = plant.Estimate(t);
-    e.position.z() -= kGround;
-    nb[0].setZero();
-    nb[0].head<3>() = p0 - plant.x.head<3>();
-    nb[0].segment<3>(3) = v0;
+    const estimation::VehicleEstimate e =
+        SenseTwo(plant, t, p0, v0, kVehicle2Start, Vec3::Zero(), &nb);
     if (lost) nb[0].setConstant(kNaN);
-    nb[1].setZero();
-    nb[1].head<3>() = p2 - plant.x.head<3>();
     // (ControlWithEstimates has no motion capture: the height is the estimate's)
     const ControlOutput o = c.ControlWithEstimates(t, e, nb);
     EXPECT_FALSE(o.fallback) << "t = " << t;
@@ -310,9 +324,8 @@ double SinkBehindDescendingNeighbour(const ControllerConfig& cfg, double t_fail,
                                      double* departed_at, double* dropped_at) {
   VehicleController c(cfg);
   Plant plant;
-  const Vec3 p0(1.3, -0.8, 1.1);
-  Vec3 p2(-0.7, 0.2, 1.1);
-  std::vector<estimation::NeighbourStateVec> nb(2);
+  Vec3 p2 = kVehicle2Start;
+  std::vector<estimation::NeighbourStateVec> nb;
   double z_fail = kNaN, sink = 0.0;
   *departed_at = *dropped_at = kNaN;
   for (double t = 0.0; t <= t_fail + 6.0; t += kTs) {
@@ -321,13 +334,8 @@ double SinkBehindDescendingNeighbour(const ControllerConfig& cfg, double t_fail,
       v2 = -0.7;
       p2.z() = std::max(kGround, p2.z() + v2 * kTs);
     }
-    estimation::VehicleEstimate e = plant.Estimate(t);
-    e.position.z() -= kGround;
-    nb[0].setZero();
-    nb[0].head<3>() = p0 - plant.x.head<3>();
-    nb[1].setZero();
-    nb[1].head<3>() = p2 - plant.x.head<3>();
-    nb[1][5] = v2;
+    const estimation::VehicleEstimate e =
+        SenseTwo(plant, t, kLeaderStart, Vec3::Zero(), p2, Vec3(0.0, 0.0, v2), &nb);
     const ControlOutput o = c.ControlWithEstimates(t, e, nb);
     EXPECT_FALSE(o.fallback) << "t = " << t;
     plant.Step(o);
@@ -348,8 +356,7 @@ double SinkBehindDescendingNeighbour(const ControllerConfig& cfg, double t_fail,
 TEST(SafetyTest, NeighbourDescendingOutOfTheFormationLeavesTheCostBeforeItLands) {
   // Given a follower with its leader and vehicle 2 (kill-follower scenario: follower2's
   // autopilot lands it after its controller died), the leader known as vehicle 0
-  ControllerConfig cfg = BaseConfig(false);
-  cfg.neighbours = {{0, Vec3(1.0, -1.0, 0.0)}, {2, Vec3(-1.0, 0.0, 0.0)}};
+  ControllerConfig cfg = FollowerOfTwo();
   cfg.leader_vehicle = 0;
   const double t_fail = 8.0;
   // When vehicle 2 descends at 0.7 m/s from t_fail
