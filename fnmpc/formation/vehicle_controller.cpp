@@ -1332,8 +1332,11 @@ void VehicleController::BeginLanding(double t, double z) {
   contact_.Reset();
   z_ref_ = std::isfinite(z) ? z : config_.takeoff_height;
   hold_xy_ = estimates_.own.position.head<2>();
-  pid_.Reset(last_command_[0]);
-  blend_from_ = last_command_;
+  // From the recent mean thrust, not the last command: the PID's integral is the thrust
+  // that holds the vehicle, and the landing may start close to the ground.
+  const double thrust = std::isfinite(mean_thrust_) ? mean_thrust_ : last_command_[0];
+  pid_.Reset(thrust);
+  blend_from_ = Vec3(thrust, last_command_[1], last_command_[2]);
   blend_start_ = t;
 }
 
@@ -1598,6 +1601,9 @@ ControlOutput VehicleController::Step(double t) {
     }
   } else {
     last_command_ = Vec3(thrust, roll, pitch);
+    const double a = config_.blend_time > 0.0 ? 1.0 - std::exp(-dt / config_.blend_time) : 1.0;
+    mean_thrust_ =
+        std::isfinite(mean_thrust_) ? mean_thrust_ + a * (thrust - mean_thrust_) : thrust;
   }
   out.phase = phase_;
   out.thrust = thrust;

@@ -284,6 +284,10 @@ class VehicleController {
   Vec3 blend_from_ = Vec3::Constant(kNaN);  // (thrust, roll, pitch) at the last switch
   double blend_start_ = kNaN;
   Vec3 last_command_ = Vec3::Constant(kNaN);  // last valid (thrust, roll, pitch)
+  // The valid thrust commands averaged over blend_time (first-order, [N]): what the landing
+  // PID starts from. A single command is a poor start where the NMPC alternates (at the
+  // altitude bound its thrust swings 11-17 N from step to step; stress/leader-lands-early).
+  double mean_thrust_ = kNaN;
   long fallbacks_ = 0;
   ControllerEstimates estimates_;
   RecoveryLadder ladder_;

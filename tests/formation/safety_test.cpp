@@ -275,6 +275,36 @@ TEST(SafetyTest, LandingMovesItsSiteClearOfAVehicleBelow) {
   EXPECT_GT(on.min_distance, r - 0.02);
 }
 
+TEST(SafetyTest, LandingStartsFromTheMeanThrustNotFromAnOutlyingLastCommand) {
+  // Given a leader hovering under the NMPC, landing at 8 s
+  ControllerConfig cfg = BaseConfig(true);
+  cfg.landing_time = 8.0;
+  VehicleController c(cfg);
+  Plant plant;
+  const int landing_step = 160;  // t = 8 s
+  double last_nmpc = kNaN, first_landing = kNaN;
+  for (int k = 0; k <= landing_step + 2; ++k) {
+    const double t = k * kTs;
+    estimation::VehicleEstimate e = plant.Estimate(t);
+    // When its last NMPC step sees it 0.3 m too high (one glitching sample; at the altitude
+    // bound the NMPC's thrust swings as far from step to step)
+    if (k == landing_step - 1) e.position.z() += 0.3;
+    const ControlOutput o = c.ControlWithEstimates(t, e, {});
+    if (o.phase == FlightPhase::kNmpc) last_nmpc = o.thrust;
+    if (o.phase == FlightPhase::kLanding && std::isnan(first_landing)) first_landing = o.thrust;
+    plant.Step(o);
+  }
+  const double hover = cfg.params.mass * kGravity;
+  std::printf("[   INFO   ] hover %.2f N, last NMPC command %.2f N, first landing command %.2f N\n",
+              hover, last_nmpc, first_landing);
+  // (the NMPC answers the glitch far below hover)
+  ASSERT_LT(last_nmpc, hover - 1.0);
+  // Then the landing PID starts from the recent mean command: about hover, the glitch's
+  // command weighing 1 - exp(-kTs / blend_time) in it, not from that command alone
+  const double a = 1.0 - std::exp(-kTs / cfg.blend_time);
+  EXPECT_NEAR(first_landing, hover + a * (last_nmpc - hover), 0.15);
+}
+
 TEST(SafetyTest, FollowerDoesNotFollowAFallingNeighbourIntoTheGround) {
   // Given a follower in formation with its leader (vehicle 0, desired at the same height) and
   // vehicle 2, all at about 1.1 m, its height known (the altitude bound applies)
