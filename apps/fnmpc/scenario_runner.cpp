@@ -12,6 +12,7 @@
 #include <random>
 #include <stdexcept>
 
+#include "apps/fnmpc/formation_print.hpp"
 #include "apps/fnmpc/output_files.hpp"
 #include "apps/fnmpc/run_loop.hpp"
 #include "apps/fnmpc/run_metrics.hpp"
@@ -54,7 +55,10 @@ formation::ControllerConfig ControllerConfigFor(const config::ScenarioConfig& sc
   c.sensors = v.sensors;
   c.weights = v.leader ? sc.leader_weights : sc.follower_weights;
   c.pid.max_thrust = sc.thrust_max;
-  for (const auto& n : v.neighbours) c.neighbours.push_back({n.index, n.desired});
+  // Each tie with its neighbour's graph depth, from the scenario's ties (controller.tie_weights).
+  const std::vector<int> depth = TieDepths(sc);
+  for (const auto& n : v.neighbours)
+    c.neighbours.push_back({n.index, n.desired, depth.at(static_cast<std::size_t>(n.index))});
   // Collision avoidance: the other vehicles the relative sensor reports, in the tracking
   // slots that `controller.max_tracked` leaves after the formation neighbours.
   c.track_others = v.sensors.relative.enabled;

@@ -3,6 +3,7 @@
 
 #include "fnmpc/core/serialize.hpp"
 #include "fnmpc/formation/recovery.hpp"
+#include "fnmpc/formation/tie_weights.hpp"
 #include "fnmpc/rti/rti_settings.hpp"
 
 namespace fnmpc::formation {
@@ -48,6 +49,8 @@ struct ControllerSettings {
   double neighbour_acceleration_filter = 0.1;
   /// Cooperative mode: a neighbour's plan older than this is not used [s].
   double plan_timeout = 0.2;
+  /// Follower: how its tie weight is shared among its neighbours (tie_weights.hpp).
+  TieWeighting tie_weights = TieWeighting::kEqual;
 
   template <class Archive>
   void Serialize(Archive* a) {
@@ -72,6 +75,14 @@ struct ControllerSettings {
              "[s] cooperative: a neighbour's plan older than this (time since the control step "
              "that made it) is late and not used; the neighbour is then predicted at constant "
              "velocity");
+    a->VisitChoice("controller.tie_weights", &tie_weights, kTieWeightingChoice,
+                   "follower: how its formation-tie weight (the active ties' count times "
+                   "`weights.follower`) is shared among its neighbours, by their graph depth "
+                   "(fewest ties from the leader, computed from the formation's ties): equal = "
+                   "alike (the reference work); depth = only the ties to the neighbours of the "
+                   "lowest depth among the active ones (the row ahead; a row-mate's tie then "
+                   "carries weight only when no tie towards the leader is left). String "
+                   "stability down the graph, docs/results.md \"Scale\"");
     a->Visit("controller.neighbour_acceleration.decay", &neighbour_acceleration_decay,
              NonNegative(),
              "[s] follower: each formation neighbour is predicted with its estimated acceleration "

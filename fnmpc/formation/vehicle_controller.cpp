@@ -57,6 +57,9 @@ void ControllerConfig::Validate() const {
          "' is not implemented yet (accepted: " + kCompensationChoice.Accepted() + ")");
   }
   if (!(plan_timeout > 0.0)) fail("plan_timeout must be > 0 s");
+  const int rule = static_cast<int>(tie_weights);
+  if (rule < 0 || rule >= kTieWeightingChoice.count)
+    fail("tie_weights must be one of " + kTieWeightingChoice.Accepted());
   safety.Validate();
   if (!leader) {
     if (neighbours.empty() || neighbours.size() > static_cast<std::size_t>(kMaxNeighbours)) {
@@ -427,6 +430,9 @@ class LeaderCore final : public NmpcCore {
 // one neighbour, the mean of the active neighbours as its target and n times the weights has
 // the same Gauss-Newton QP in the inputs as one with a row block per neighbour
 // (tests/rti/neighbour_mean_test.cpp). Diagnose() adds the spread term back to the cost.
+// With tie weights w_j (ControllerSettings::tie_weights, summing to n) the same holds for
+// the weighted sum: sum_j w_j |a_j - x|_W^2 = n |a_w - x|_W^2 + sum_j w_j |a_j - a_w|_W^2,
+// a_w = sum_j w_j a_j / n; equal weights (w_j = 1) are the plain mean.
 class FollowerCore final : public NmpcCore {
  public:
   using Reduced = ocp::ReducedFollowerProblem<1>;
@@ -452,7 +458,10 @@ class FollowerCore final : public NmpcCore {
     solver_.SetWeights(w_, wn_);
     InputBounds(c, &solver_);
     nn_ = static_cast<int>(c.neighbours.size());
-    for (int j = 0; j < nn_; ++j) desired_[j] = c.neighbours[j].desired;
+    for (int j = 0; j < nn_; ++j) {
+      desired_[j] = c.neighbours[j].desired;
+      depth_[j] = c.neighbours[j].depth;
+    }
     yref_.assign(solver_.horizon(), Solver::Y::Zero());
     yref_n_.setZero();
     params_.assign(solver_.horizon() + 1, Solver::P::Zero());
@@ -505,16 +514,17 @@ class FollowerCore final : public NmpcCore {
     wn->tail<kObstacleSlots>() = w.segment<kObstacleSlots>(kNyR);
   }
 
-  // The active neighbours' mean desired offset as the reference, n times the weights (a lost
-  // neighbour leaves the mean; with none the rows get weight zero, the pattern is kept: no
-  // allocation).
+  // The active neighbours' tie-weighted mean desired offset as the reference, n times the
+  // weights (a lost neighbour leaves the mean and the tie weights are shared anew; with none
+  // the rows get weight zero, the pattern is kept: no allocation).
   void Aggregate() {
     int n = 0;
     Vec3 d = Vec3::Zero();
+    TieWeights(c_.tie_weights, depth_.data(), active_.data(), nn_, tie_.data());
     for (int j = 0; j < nn_; ++j) {
       if (!active_[j]) continue;
       ++n;
-      d += desired_[j];
+      d += tie_[j] * desired_[j];
     }
     active_count_ = n;
     if (n > 0) d /= n;
@@ -619,13 +629,14 @@ class FollowerCore final : public NmpcCore {
       }
       Vec3 lo = Vec3::Constant(-kInf), hi = Vec3::Constant(kInf);
       // With no active neighbour: zero, finite and unweighted (keeps the linearisation finite).
+      // Every active neighbour bounds s, also one whose tie weight is zero.
       Vec3 rel_mean = Vec3::Zero(), vel_mean = Vec3::Zero();
       for (int j = 0; j < nn_; ++j) {
         if (!active_[j]) continue;
         Vec3 rel, vel;
         Predict(j, k, &rel, &vel);
-        rel_mean += rel;
-        vel_mean += vel;
+        rel_mean += tie_[j] * rel;
+        vel_mean += tie_[j] * vel;
         rti::quadrotor::IntersectRelativeBound(rel, b, &lo, &hi);
       }
       if (active_count_ > 0) {
@@ -659,8 +670,9 @@ class FollowerCore final : public NmpcCore {
     return x0;
   }
 
-  // sum over stages of 0.5 sum_j |a_j - a_mean|_W^2 (position and velocity rows; see the class
-  // comment): the per-neighbour cost minus the aggregated one, at the current iterate's yaw.
+  // sum over stages of 0.5 sum_j w_j |a_j - a_w|_W^2 (position and velocity rows; see the
+  // class comment): the per-neighbour cost minus the aggregated one, at the current iterate's
+  // yaw.
   double SpreadCost() const {
     if (active_count_ < 2) return 0.0;
     const Vec3 wp = c_.weights.position, wv = c_.weights.velocity;
@@ -676,15 +688,16 @@ class FollowerCore final : public NmpcCore {
         ocp::RelativeRows::Write(c_.frame, rel, psi, 1.0, 0, 0, 0, &r,
                                  static_cast<Mat<3, 9>*>(nullptr));
         a[j] = r - desired_[j];
-        a_mean += a[j];
-        v_mean += v[j];
+        a_mean += tie_[j] * a[j];
+        v_mean += tie_[j] * v[j];
       }
       a_mean /= active_count_;
       v_mean /= active_count_;
       double stage = 0.0;
       for (int j = 0; j < nn_; ++j) {
         if (!active_[j]) continue;
-        stage += (a[j] - a_mean).cwiseAbs2().dot(wp) + (v[j] - v_mean).cwiseAbs2().dot(wv);
+        stage +=
+            tie_[j] * ((a[j] - a_mean).cwiseAbs2().dot(wp) + (v[j] - v_mean).cwiseAbs2().dot(wv));
       }
       sum += 0.5 * (k < solver_.horizon() ? 1.0 : c_.weights.terminal_factor) * stage;
     }
@@ -699,6 +712,8 @@ class FollowerCore final : public NmpcCore {
   int nn_ = 0, active_count_ = 0;
   std::array<bool, kMaxNeighbours> active_{};
   std::array<Vec3, kMaxNeighbours> desired_{}, rel_{}, vel_{}, acc_{};
+  std::array<int, kMaxNeighbours> depth_{};   // the neighbours' graph depths (-1: unknown)
+  std::array<double, kMaxNeighbours> tie_{};  // tie weights (TieWeights; sum: active_count_)
   double floor_ = -kInf;  // relative z of a neighbour resting on the ground [m] (Predict)
   const NeighbourPlans* plans_ = nullptr;  // cooperative: the plans of the last Stage (Predict)
   double t_ = 0.0;                         // time of the last Stage [s]

@@ -37,6 +37,10 @@ namespace fnmpc::formation {
 struct NeighbourTarget {
   int vehicle = -1;
   Vec3 desired = Vec3::Zero();
+  /// The neighbour's graph depth: fewest formation ties from the leader (formation::TieDepths,
+  /// computed by whoever builds the formation); -1 unknown. Ranks the ties for
+  /// ControllerSettings::tie_weights.
+  int depth = -1;
 };
 
 /// Phases of a flight.

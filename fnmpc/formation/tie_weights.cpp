@@ -1,0 +1,34 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "fnmpc/formation/tie_weights.hpp"
+
+#include <algorithm>
+
+namespace fnmpc::formation {
+
+void TieWeights(TieWeighting rule, const int* depth, const bool* active, int n, double* w) {
+  int count = 0, lowest = -1;
+  bool known = true;
+  for (int j = 0; j < n; ++j) {
+    if (!active[j]) continue;
+    ++count;
+    known = known && depth[j] >= 0;
+    if (depth[j] >= 0) lowest = lowest < 0 ? depth[j] : std::min(lowest, depth[j]);
+  }
+  double sum = 0.0;
+  for (int j = 0; j < n; ++j) {
+    double r = 0.0;
+    if (active[j]) {
+      if (!known || rule == TieWeighting::kEqual) {
+        r = 1.0;
+      } else {
+        r = depth[j] == lowest ? 1.0 : 0.0;
+      }
+    }
+    w[j] = r;
+    sum += r;
+  }
+  if (count == 0) return;
+  for (int j = 0; j < n; ++j) w[j] *= count / sum;
+}
+
+}  // namespace fnmpc::formation
