@@ -27,7 +27,7 @@ void VehicleCsvLog::Write(const VehicleLogRow& r) {
       "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
       "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
       "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
-      "{:d},{:.6g},{:.6g},{:.6g},{:.6g},{},{},{:d},{},{:d},{},{:.4f},{:.4f},{},{},{},"
+      "{:d},{:.6g},{:.6g},{:.6g},{},{},{:d},{},{:d},{},{:.4f},{:.4f},{},{},{},"
       "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f}\n",
       r.t, r.phase, x.position.x(), x.position.y(), x.position.z(), x.velocity.x(), x.velocity.y(),
       x.velocity.z(), x.euler.x(), x.euler.y(), x.euler.z(), e.position.x(), e.position.y(),
@@ -37,7 +37,7 @@ void VehicleCsvLog::Write(const VehicleLogRow& r) {
       r.tracking, rel[0].x(), rel[0].y(), rel[0].z(), est_rel[0].x(), est_rel[0].y(),
       est_rel[0].z(), err[0], rel[1].x(), rel[1].y(), rel[1].z(), est_rel[1].x(), est_rel[1].y(),
       est_rel[1].z(), err[1], r.formation_error, r.steady ? 1 : 0, out.cost, out.kkt,
-      out.solver_time, out.solver_cpu_time, out.sqp_iterations, out.qp_iterations,
+      out.solver_time, out.sqp_iterations, out.qp_iterations,
       out.fallback ? 1 : 0, rti::ToString(out.status), out.guarded ? 1 : 0, r.estimator_rejections,
       x.voltage, out.voltage, formation::ToString(out.recovery),
       formation::ToString(out.recovery_reason), out.active_neighbours, x.aero_force.x(),

@@ -27,7 +27,7 @@ inline constexpr const char* kVehicleLogCsvHeader =
     "nmpc_thrust,nmpc_roll,nmpc_pitch,ref_x,ref_y,ref_z,tracking_error,"
     "rel0_x,rel0_y,rel0_z,est_rel0_x,est_rel0_y,est_rel0_z,err0,"
     "rel1_x,rel1_y,rel1_z,est_rel1_x,est_rel1_y,est_rel1_z,err1,formation_error,"
-    "steady,cost,kkt,solver_time,solver_cpu_time,sqp_iterations,qp_iterations,"
+    "steady,cost,kkt,solver_time,sqp_iterations,qp_iterations,"
     "fallback,status,guarded,estimator_rejections,voltage,voltage_measured,"
     "recovery,recovery_reason,active_neighbours,aero_fx,aero_fy,aero_fz,"
     "est_fx,est_fy,est_fz\n";

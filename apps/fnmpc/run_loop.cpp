@@ -265,7 +265,6 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
               L.max_thrust_jump_at_switch = std::abs(out.thrust - prev[i].thrust);
             }
             L.solver_time.push_back(out.solver_time);
-            L.solver_cpu.push_back(out.solver_cpu_time);
             if (out.solver_time > sc.rti.sample_time) ++L.over_budget;
             if (out.fallback) ++L.fallbacks;
             if (out.status != rti::RtiStatus::kSuccess) ++L.failures;

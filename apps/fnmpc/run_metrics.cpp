@@ -92,7 +92,6 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
       j["nmpc_steps"] = L.steps;
       j["solver_time_median_s"] = Num(Median(L.solver_time));
       j["solver_time_max_s"] = Num(Max(L.solver_time));
-      j["solver_cpu_time_max_s"] = Num(Max(L.solver_cpu));
       j["solver_time_first_step_s"] = Num(L.first_step_time);
       j["solver_steps_over_budget_share"] =
           L.steps > 0 ? static_cast<double>(L.over_budget) / static_cast<double>(L.steps) : 0.0;

@@ -26,7 +26,7 @@ struct VehicleRecord {
   std::vector<std::vector<double>> nb_errors;  // per neighbour
   std::vector<std::vector<double>> nb_steady;
   std::vector<double> tracking;  // leader |p - p_ref|
-  std::vector<double> solver_time, solver_cpu, kkt, cost;
+  std::vector<double> solver_time, kkt, cost;
   long over_budget = 0, steps = 0, fallbacks = 0, guarded = 0, failures = 0;
   long reinitialisations = 0;
   long landing_site_shifts = 0;  // landing sites moved clear of a vehicle below

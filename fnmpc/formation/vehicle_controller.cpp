@@ -6,7 +6,6 @@
 #include <stdexcept>
 #include <string>
 
-#include "fnmpc/core/stopwatch.hpp"
 #include "fnmpc/formation/neighbour_acceleration.hpp"
 #include "fnmpc/formation/throttle_map.hpp"
 #include "fnmpc/ocp/problem_extensions.hpp"
@@ -176,7 +175,6 @@ Vec3 ObstacleAt(const NmpcInput& in, int o, double t) {
 struct NmpcStep {
   Vec3 u = Vec3::Constant(kNaN);
   rti::RtiStats stats;
-  double cpu_time = kNaN;
   Vec3 reference = Vec3::Constant(kNaN);
 };
 
@@ -245,12 +243,12 @@ void SolveStep(Solver* s, const typename Solver::X& x0, bool forced_failure, Nmp
     out->stats.fallback = true;
     out->stats.sqp_iterations = 0;
     out->stats.qp_iterations = 0;
-    out->cpu_time = 0.0;
+    out->stats.time_prepare = 0.0;
+    out->stats.time_feedback = 0.0;
+    out->stats.time_total = 0.0;
     return;
   }
-  const double cpu0 = ThreadCpuSeconds();
   s->Step(x0, &out->u);
-  out->cpu_time = ThreadCpuSeconds() - cpu0;
   out->stats = s->stats();
 }
 
@@ -1535,7 +1533,6 @@ ControlOutput VehicleController::Step(double t) {
       out.nmpc_roll = s.u[1];
       out.nmpc_pitch = s.u[2];
       out.solver_time = s.stats.time_total;
-      out.solver_cpu_time = s.cpu_time;
       out.sqp_iterations = s.stats.sqp_iterations;
       out.qp_iterations = s.stats.qp_iterations;
       out.fallback = s.stats.fallback;

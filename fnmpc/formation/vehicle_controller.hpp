@@ -95,10 +95,11 @@ struct ControlOutput {
   // NMPC (valid when phase == kNmpc).
   bool nmpc = false;
   double nmpc_thrust = kNaN, nmpc_roll = kNaN, nmpc_pitch = kNaN;  ///< unblended NMPC output
-  double cost = kNaN;             ///< NMPC objective of the iterate after the step
-  double kkt = kNaN;              ///< KKT value after the step
-  double solver_time = kNaN;      ///< wall time of Step() [s]
-  double solver_cpu_time = kNaN;  ///< thread CPU time of Step() [s]
+  double cost = kNaN;  ///< NMPC objective of the iterate after the step
+  double kkt = kNaN;   ///< KKT value after the step
+  /// Wall time of the RTI step (steady clock, RtiStats::time_total; 0 for an injected
+  /// failure, which does not solve) [s]
+  double solver_time = kNaN;
   int sqp_iterations = 0, qp_iterations = 0;
   bool fallback = false;
   rti::RtiStatus status = rti::RtiStatus::kSuccess;

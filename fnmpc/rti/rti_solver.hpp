@@ -257,7 +257,12 @@ class RtiSolver : private detail::ProblemContract<Problem> {
     const bool first = first_call_;
     const int cap = first ? settings_.max_initial_iterations : settings_.max_iterations;
     // The CPU budget is checked only between iterations of a later call; pure RTI
-    // (max_iterations = 1) never reads the thread CPU clock, a system call of about 0.5 us.
+    // (max_iterations = 1) never reads the thread CPU clock, a system call of about 1 us.
+    // It stays CPU time, not wall time: Algorithm 1 of the reference work budgets CPU time,
+    // and a wall budget would let preemption (other processes, the simulator's other
+    // vehicles) change the number of SQP iterations, and with it the trajectory, from one
+    // run of the same seed to the next. The wall time of the step is stats().time_total;
+    // one CPU-clock reading per extra iteration is small next to its Prepare() + Feedback().
     const bool budgeted = !first && cap > 1;
     const double cpu0 = budgeted ? ThreadCpuSeconds() : 0.0;
     RtiStatus status = RtiStatus::kSuccess;

@@ -17,8 +17,8 @@
 namespace fnmpc::app {
 namespace {
 
-/// A vehicle log without its two wall-clock columns (solver_time, solver_cpu_time: the only
-/// ones that differ between two runs of the same flight).
+/// A vehicle log without its wall-clock column (solver_time: the only one that differs
+/// between two runs of the same flight).
 std::string Slurp(const std::string& path) {
   std::ifstream f(path);
   std::string line, out;
@@ -27,7 +27,7 @@ std::string Slurp(const std::string& path) {
     std::stringstream cells(line);
     std::string cell;
     for (std::size_t c = 0; std::getline(cells, cell, ','); ++c) {
-      if (skip.size() <= c) skip.push_back(cell == "solver_time" || cell == "solver_cpu_time");
+      if (skip.size() <= c) skip.push_back(cell == "solver_time");
       if (!skip[c]) out += cell + ",";
     }
     out += "\n";

@@ -23,8 +23,7 @@ namespace fs = std::filesystem;
 
 // Wall-clock measurements differ between any two runs; everything else must not.
 bool IsTiming(const std::string& key) {
-  return key.rfind("solver_time", 0) == 0 || key.rfind("solver_cpu_time", 0) == 0 ||
-         key == "solver_steps_over_budget_share";
+  return key.rfind("solver_time", 0) == 0 || key == "solver_steps_over_budget_share";
 }
 
 void DropTimings(json* j) {

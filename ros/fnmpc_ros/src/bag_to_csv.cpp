@@ -187,7 +187,7 @@ int Convert(const std::string& bag_file, const std::string& scenario_file, const
           "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
           "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
           "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},"
-          "{:d},{:.6g},{:.6g},{:.6g},{:.6g},{},{},{:d},{},{:d},{},{:.4f},{:.4f},{},{},{},"
+          "{:d},{:.6g},{:.6g},{:.6g},{},{},{:d},{},{:d},{},{:.4f},{:.4f},{},{},{},"
           "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f}\n",
           t, sp.phase, x.position.x(), x.position.y(), x.position.z(), x.velocity.x(),
           x.velocity.y(), x.velocity.z(), x.euler.x(), x.euler.y(), x.euler.z(), ep.x(), ep.y(),
@@ -197,7 +197,7 @@ int Convert(const std::string& bag_file, const std::string& scenario_file, const
           rel[0].z(), est_rel[0].x(), est_rel[0].y(), est_rel[0].z(), err[0], rel[1].x(),
           rel[1].y(), rel[1].z(), est_rel[1].x(), est_rel[1].y(), est_rel[1].z(), err[1], ferr,
           steady ? 1 : 0, dg ? dg->cost : nan, dg ? dg->kkt : nan, dg ? dg->solver_time : nan,
-          dg ? dg->solver_cpu_time : nan, dg ? dg->sqp_iterations : 0, dg ? dg->qp_iterations : 0,
+          dg ? dg->sqp_iterations : 0, dg ? dg->qp_iterations : 0,
           dg && dg->fallback ? 1 : 0, dg ? dg->status : std::string("?"), dg && dg->guarded ? 1 : 0,
           dg ? dg->estimator_rejections : 0, x.voltage, dg ? dg->voltage : nan,
           dg ? dg->recovery : std::string("none"), dg ? dg->recovery_reason : std::string("none"),

@@ -188,7 +188,6 @@ fnmpc_ros::SolverDiagnostics ToDiagnostics(const formation::ControlOutput& out,
   d.cost = out.cost;
   d.kkt = out.kkt;
   d.solver_time = out.solver_time;
-  d.solver_cpu_time = out.solver_cpu_time;
   d.sqp_iterations = out.sqp_iterations;
   d.qp_iterations = out.qp_iterations;
   d.fallback = out.fallback;
