@@ -272,6 +272,10 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
             L.cost.push_back(out.cost);
           }
           if (out.guarded) ++L.guarded;
+          if (out.neighbour_thrust_bounded > 0) {
+            L.neighbour_thrust_bounded[static_cast<std::size_t>(out.neighbour_thrust_bound)] +=
+                out.neighbour_thrust_bounded;
+          }
           // Touchdown: the first control step of the landing phase with the true CoM within
           // 1.5 cm of its resting height (the feet touch); its true vertical speed is kept.
           if ((out.phase == FlightPhase::kLanding || out.phase == FlightPhase::kLanded ||

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "apps/fnmpc/formation_print.hpp"
+#include "fnmpc/formation/neighbour_thrust.hpp"
 
 namespace fnmpc::app {
 
@@ -114,6 +115,14 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
       leaderless_landings += std::isfinite(L.tie_loss_time) ? 1 : 0;
       j["solver_failures"] = L.failures;
       j["guarded_commands"] = L.guarded;
+      {
+        json b;  // wake level: neighbour thrust estimates bounded, by reason
+        for (int k = 1; k < 4; ++k) {
+          b[formation::ToString(static_cast<formation::ThrustBound>(k))] =
+              L.neighbour_thrust_bounded[static_cast<std::size_t>(k)];
+        }
+        j["neighbour_thrust_bounded"] = b;
+      }
       j["estimator_rejections"] = r.estimator_rejections[i];
       j["thrust_jump_at_switch_n"] = Num(L.max_thrust_jump_at_switch);
       const sim::TrueState& x = r.final_state[i];

@@ -31,6 +31,9 @@ struct VehicleRecord {
   long reinitialisations = 0;
   long landing_site_shifts = 0;  // landing sites moved clear of a vehicle below
   long neighbour_departures = 0;  // neighbours dropped for leaving the formation (at the end)
+  // Compensation::kWake: neighbour thrust estimates bounded (steps x neighbours), by
+  // formation::ThrustBound (index 0 unused).
+  std::array<long, 4> neighbour_thrust_bounded{};
   double failsafe_time = kNaN;
   std::string failsafe_reason;
   double tie_loss_time = kNaN;  // follower landed for want of a tie to the leader [s]

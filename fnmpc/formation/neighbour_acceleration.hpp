@@ -91,4 +91,12 @@ inline void DecayingAccelerationPrediction(const Vec3& rel, const Vec3& vel, con
   *rel_t += dr * acc;
 }
 
+/// The neighbour filter's mixed mean acceleration [m/s^2]: the estimate `acc` (the filtered
+/// derivative of the mixed velocity) times the manoeuvring mode's probability, the hover mode's
+/// mean acceleration being zero (interacting multiple model, NeighbourEkf); a NaN
+/// hover_probability (one model, or estimates given from outside) leaves `acc` as it is.
+inline Vec3 MixedAcceleration(double hover_probability, const Vec3& acc) {
+  return std::isfinite(hover_probability) ? (1.0 - hover_probability) * acc : acc;
+}
+
 }  // namespace fnmpc::formation

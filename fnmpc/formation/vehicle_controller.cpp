@@ -7,6 +7,7 @@
 #include <string>
 
 #include "fnmpc/formation/neighbour_acceleration.hpp"
+#include "fnmpc/formation/neighbour_thrust.hpp"
 #include "fnmpc/formation/throttle_map.hpp"
 #include "fnmpc/ocp/problem_extensions.hpp"
 #include "fnmpc/ocp/wake_extension.hpp"
@@ -105,6 +106,7 @@ struct NeighbourState {
   double yaw = 0.0;             // [rad]
   double yaw_rate = 0.0;        // [rad/s]
   Vec3 acc = Vec3::Zero();      // estimated acceleration [m/s^2] (AccelerationEstimate)
+  double thrust = kNaN;         // its thrust estimated from acc (NeighbourThrust) [N]
 };
 
 /// Obstacle slots of the controllers' OCPs (the nearest sensed vehicles).
@@ -125,10 +127,13 @@ WakeSlots WakeSources(const std::array<bool, kMaxNeighbours>& active, int count)
   return source;
 }
 
-/// Thrust [N] a follower assumes for a neighbour whose wake it predicts: the hover thrust of
-/// its own vehicle file (the neighbour's thrust is not measured, and its constant-velocity
-/// estimate has no acceleration to infer it from); cooperative mode uses the shared plan's.
-double NeighbourThrust(const model::VehicleParams& own) { return own.mass * kGravity; }
+/// Thrust [N] a follower assumes for a neighbour whose wake it predicts, from its estimated
+/// acceleration (the filter's mixed mean: zero in the hover mode) and the own vehicle file's
+/// mass, bounded to what any vehicle of the formation can be commanded (neighbour_thrust.hpp);
+/// cooperative mode uses the shared plan's while it is fresh.
+ThrustEstimate NeighbourThrust(const ControllerConfig& c, const Vec3& acc) {
+  return ThrustFromAcceleration(c.params.mass, acc, std::max(c.thrust_max, c.pid.max_thrust));
+}
 
 /// One NMPC step's inputs: own estimate and neighbour estimates.
 struct NmpcInput {
@@ -579,7 +584,7 @@ class FollowerCore final : public NmpcCore {
     } else {
       DecayingAccelerationPrediction(rel_[j], vel_[j], acc_[j], c_.neighbour_acceleration_decay,
                                      k * c_.rti.sample_time, rel, vel);
-      if (thrust != nullptr) *thrust = NeighbourThrust(c_.params);
+      if (thrust != nullptr) *thrust = thrust_[j];
     }
     if (rel->z() < floor_) {
       rel->z() = floor_;
@@ -602,6 +607,7 @@ class FollowerCore final : public NmpcCore {
       rel_[j] = in.neighbours[j].rel_pos;
       vel_[j] = in.neighbours[j].vel;
       acc_[j] = in.neighbours[j].acc;
+      thrust_[j] = in.neighbours[j].thrust;
     }
     plans_ = in.plans;
     t_ = in.t;
@@ -712,6 +718,7 @@ class FollowerCore final : public NmpcCore {
   std::array<Vec3, kMaxNeighbours> desired_{}, rel_{}, vel_{}, acc_{};
   std::array<int, kMaxNeighbours> depth_{};   // the neighbours' graph depths (-1: unknown)
   std::array<double, kMaxNeighbours> tie_{};  // tie weights (TieWeights; sum: active_count_)
+  std::array<double, kMaxNeighbours> thrust_{};  // NeighbourState::thrust of the last Stage [N]
   double floor_ = -kInf;  // relative z of a neighbour resting on the ground [m] (Predict)
   const NeighbourPlans* plans_ = nullptr;  // cooperative: the plans of the last Stage (Predict)
   double t_ = 0.0;                         // time of the last Stage [s]
@@ -1474,16 +1481,25 @@ ControlOutput VehicleController::Step(double t) {
       in.position = own.position;
       in.own << own.velocity, own.euler;
       in.height = z;
+      // Compensation::kWake: the neighbours' thrusts from their estimated accelerations.
+      const bool wake_thrust = config_.compensation >= Compensation::kWake && !config_.leader;
       for (std::size_t j = 0; j < estimates_.neighbours.size(); ++j) {
         const auto& x = estimates_.neighbours[j];
         in.active[j] = presence_[j].active && x.allFinite();
-        in.neighbours[j] = {x.segment<3>(0), x.segment<3>(3), x[6], x[7], Vec3::Zero()};
-        if (config_.neighbour_acceleration_decay > 0.0) {
-          // The mixed estimate's mean acceleration: the hover mode's is zero (IMM; 1 without
-          // the filter's modes, e.g. ControlWithEstimates).
-          const double hover = neighbour_ekfs_[j].hover_probability();
-          const double manoeuvre = std::isfinite(hover) ? 1.0 - hover : 1.0;
-          in.neighbours[j].acc = manoeuvre * neighbour_acceleration_[j].Update(t, x.segment<3>(3));
+        in.neighbours[j] = {x.segment<3>(0), x.segment<3>(3), x[6], x[7], Vec3::Zero(), kNaN};
+        if (config_.neighbour_acceleration_decay > 0.0 || wake_thrust) {
+          const Vec3 acc = MixedAcceleration(neighbour_ekfs_[j].hover_probability(),
+                                             neighbour_acceleration_[j].Update(t, x.segment<3>(3)));
+          if (config_.neighbour_acceleration_decay > 0.0) in.neighbours[j].acc = acc;
+          if (wake_thrust) {
+            // Once per neighbour and step (the horizon holds it): the wake model's thrust.
+            const ThrustEstimate T = NeighbourThrust(config_, acc);
+            in.neighbours[j].thrust = T.thrust;
+            if (T.bound != ThrustBound::kNone) {
+              ++out.neighbour_thrust_bounded;
+              out.neighbour_thrust_bound = T.bound;
+            }
+          }
         }
       }
       in.last_command = last_command_.allFinite() ? last_command_
@@ -1506,7 +1522,7 @@ ControlOutput VehicleController::Step(double t) {
               in.plans != nullptr &&
               plans_.Predict(j, t, 0.0, config_.plan_timeout, in.neighbours[j].rel_pos,
                              in.neighbours[j].vel, &plan);
-          const double thrust = planned ? plan.thrust : NeighbourThrust(config_.params);
+          const double thrust = planned ? plan.thrust : in.neighbours[j].thrust;
           in.wake.z() += wake_.Acceleration(-in.neighbours[j].rel_pos, thrust);
         }
         if (!in.wake.allFinite()) in.wake.setZero();

@@ -17,6 +17,7 @@
 #include "fnmpc/formation/neighbour_acceleration.hpp"
 #include "fnmpc/formation/neighbour_limits.hpp"
 #include "fnmpc/formation/neighbour_plan.hpp"
+#include "fnmpc/formation/neighbour_thrust.hpp"
 #include "fnmpc/formation/nmpc_weights.hpp"
 #include "fnmpc/formation/recovery.hpp"
 #include "fnmpc/formation/takeoff_pid.hpp"
@@ -114,6 +115,10 @@ struct ControlOutput {
   /// wakes at the current relative positions, model::WakeForceModel), passed to the estimator
   /// as known; zero otherwise [m/s^2].
   Vec3 wake = Vec3::Zero();
+  /// Compensation::kWake, follower: neighbours whose thrust estimate (from their estimated
+  /// acceleration, neighbour_thrust.hpp) was bounded at this step, and the last one's reason.
+  int neighbour_thrust_bounded = 0;
+  ThrustBound neighbour_thrust_bound = ThrustBound::kNone;
   Vec3 reference = Vec3::Constant(kNaN);  ///< leader position reference [m]
   double voltage = kNaN;                  ///< filtered measured battery voltage [V]
 };

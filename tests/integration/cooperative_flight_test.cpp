@@ -69,6 +69,13 @@ TEST(CooperativeFlightTest, EveryMessageLostFliesExactlyAsWake) {
   EXPECT_EQ(lost["link"]["delivered"].get<long>(), 0);
   EXPECT_EQ(lost["link"]["lost"], lost["link"]["addressed"]);
   EXPECT_FALSE(wake.contains("link"));
+  // The wake level's estimate of the leader's thrust from its motion stayed inside the
+  // physically possible range at every step (formation::ThrustFromAcceleration's bounds).
+  ASSERT_TRUE(wake["vehicles"]["follower"].contains("neighbour_thrust_bounded"));
+  for (const char* reason : {"non_finite", "upside_down", "above_max"}) {
+    EXPECT_EQ(wake["vehicles"]["follower"]["neighbour_thrust_bounded"][reason].get<long>(), 0)
+        << reason;
+  }
   // and with the link up the leader's plans reach the follower in time (the leader is the
   // follower's only neighbour and the follower nobody's: one receiver per plan)
   ASSERT_TRUE(up.contains("link"));
