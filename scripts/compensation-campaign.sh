@@ -4,16 +4,22 @@
 # compensation levels (10 seeds each, reality as the scenario ships it), plus cooperative mode on
 # a lossy link (30 % loss, 100 ms latency) and the flying leader on 2 s legs. Run from the
 # repository root; a folder that already has its summary.json is kept (resumable).
-#   scripts/compensation-campaign.sh [FNMPC] [OUT]      (defaults: build/apps/fnmpc/fnmpc, runs/coop)
+#   scripts/compensation-campaign.sh [FNMPC] [OUT] [ONLY]  (defaults: build/apps/fnmpc/fnmpc, runs/coop)
+# ONLY (optional): an extended regular expression; only the folders whose name (e.g.
+# stress-wedge10-fast-wake) matches it are flown (one campaign at a time on a shared machine).
+# RUNS (environment, default 10): seeds 1..RUNS per folder (fewer for the large scale/ ones).
 #   scripts/compensation-table.py runs/coop/triangle-{none,observer,wake,cooperative,lossy}
 set -u
 F=${1:-build/apps/fnmpc/fnmpc}
 R=${2:-runs/coop}
+ONLY=${3:-}
+RUNS=${RUNS:-10}
 mkdir -p "$R"
 run() { # folder scenario level
   [[ -f $R/$1/summary.json ]] && return
+  [[ -n $ONLY && ! $1 =~ $ONLY ]] && return
   rm -rf "${R:?}/$1"
-  "$F" run "$2" --runs 10 --compensation "$3" -q -o "$R/$1" >/dev/null 2>"$R/$1.err"
+  "$F" run "$2" --runs "$RUNS" --compensation "$3" -q -o "$R/$1" >/dev/null 2>"$R/$1.err"
   echo "$(date +%T) $1 exit $?" >>"$R/progress.log"
 }
 # Variants (vehicle and sensor paths made absolute): the flying leader on 2 s legs (the issue's
