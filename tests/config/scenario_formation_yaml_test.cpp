@@ -53,6 +53,19 @@ std::string ErrorOf(const std::string& block) {
   return "";
 }
 
+// The deep formations of config/scenarios/scale/ ship with the neighbours' plans (without them
+// they are not string-stable, docs/results.md "Scale") and with reality on, like every other
+// scenario a user flies by default (issue #15).
+TEST(ScenarioFormationYamlTest, ScaleScenariosFlyCooperativelyWithRealityOn) {
+  for (const char* name : {"wedge28.yaml", "wedge28-fast.yaml", "grid100.yaml"}) {
+    const ScenarioConfig s =
+        LoadScenarioFile(std::string(FNMPC_SOURCE_DIR) + "/config/scenarios/scale/" + name);
+    EXPECT_TRUE(s.reality.enabled) << name;
+    EXPECT_TRUE(s.reality.rotor_aerodynamics && s.reality.wake && s.reality.sensors) << name;
+    EXPECT_EQ(s.compensation, formation::Compensation::kCooperative) << name;
+  }
+}
+
 TEST(ScenarioFormationYamlTest, GeneratedWedgeIsTheHandWrittenOne) {
   const ScenarioConfig listed = LoadScenarioFile(kStress + "wedge10-fast.yaml");
   const FormationFile f(
