@@ -37,12 +37,11 @@ void VehicleCsvLog::Write(const VehicleLogRow& r) {
       r.tracking, rel[0].x(), rel[0].y(), rel[0].z(), est_rel[0].x(), est_rel[0].y(),
       est_rel[0].z(), err[0], rel[1].x(), rel[1].y(), rel[1].z(), est_rel[1].x(), est_rel[1].y(),
       est_rel[1].z(), err[1], r.formation_error, r.steady ? 1 : 0, out.cost, out.kkt,
-      out.solver_time, out.sqp_iterations, out.qp_iterations,
-      out.fallback ? 1 : 0, rti::ToString(out.status), out.guarded ? 1 : 0, r.estimator_rejections,
-      x.voltage, out.voltage, formation::ToString(out.recovery),
-      formation::ToString(out.recovery_reason), out.active_neighbours, x.aero_force.x(),
-      x.aero_force.y(), x.aero_force.z(), r.estimated_force.x(), r.estimated_force.y(),
-      r.estimated_force.z());
+      out.solver_time, out.sqp_iterations, out.qp_iterations, out.fallback ? 1 : 0,
+      rti::ToString(out.status), out.guarded ? 1 : 0, r.estimator_rejections, x.voltage,
+      out.voltage, formation::ToString(out.recovery), formation::ToString(out.recovery_reason),
+      out.active_neighbours, x.aero_force.x(), x.aero_force.y(), x.aero_force.z(),
+      r.estimated_force.x(), r.estimated_force.y(), r.estimated_force.z());
   file_->Write(std::string_view(row_.data(), row_.size()));
 }
 

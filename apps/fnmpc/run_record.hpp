@@ -29,7 +29,7 @@ struct VehicleRecord {
   std::vector<double> solver_time, kkt, cost;
   long over_budget = 0, steps = 0, fallbacks = 0, guarded = 0, failures = 0;
   long reinitialisations = 0;
-  long landing_site_shifts = 0;  // landing sites moved clear of a vehicle below
+  long landing_site_shifts = 0;   // landing sites moved clear of a vehicle below
   long neighbour_departures = 0;  // neighbours dropped for leaving the formation (at the end)
   // Compensation::kWake: neighbour thrust estimates bounded (steps x neighbours), by
   // formation::ThrustBound (index 0 unused).
@@ -74,8 +74,8 @@ struct RunRecord {
   long measurements = 0, outliers = 0;
   bool link = false;          ///< cooperative mode: plans went over the simulated link
   LinkStatistics link_stats;  ///< its messages
-  std::string stopped;    ///< why the loop ended early ("interrupted"), empty: it did not
-  std::string sim_error;  ///< the simulator's instability report
+  std::string stopped;        ///< why the loop ended early ("interrupted"), empty: it did not
+  std::string sim_error;      ///< the simulator's instability report
 };
 
 }  // namespace fnmpc::app

@@ -576,8 +576,7 @@ class FollowerCore final : public NmpcCore {
   void Predict(int j, int k, Vec3* rel, Vec3* vel, double* thrust = nullptr) const {
     PlanPrediction plan;
     if (plans_ != nullptr &&
-        plans_->Predict(j, t_, k * c_.rti.sample_time, c_.plan_timeout, rel_[j], vel_[j],
-                        &plan)) {
+        plans_->Predict(j, t_, k * c_.rti.sample_time, c_.plan_timeout, rel_[j], vel_[j], &plan)) {
       *rel = plan.rel;
       *vel = plan.vel;
       if (thrust != nullptr) *thrust = plan.thrust;
@@ -716,8 +715,8 @@ class FollowerCore final : public NmpcCore {
   int nn_ = 0, active_count_ = 0;
   std::array<bool, kMaxNeighbours> active_{};
   std::array<Vec3, kMaxNeighbours> desired_{}, rel_{}, vel_{}, acc_{};
-  std::array<int, kMaxNeighbours> depth_{};   // the neighbours' graph depths (-1: unknown)
-  std::array<double, kMaxNeighbours> tie_{};  // tie weights (TieWeights; sum: active_count_)
+  std::array<int, kMaxNeighbours> depth_{};      // the neighbours' graph depths (-1: unknown)
+  std::array<double, kMaxNeighbours> tie_{};     // tie weights (TieWeights; sum: active_count_)
   std::array<double, kMaxNeighbours> thrust_{};  // NeighbourState::thrust of the last Stage [N]
   double floor_ = -kInf;  // relative z of a neighbour resting on the ground [m] (Predict)
   const NeighbourPlans* plans_ = nullptr;  // cooperative: the plans of the last Stage (Predict)

@@ -244,12 +244,12 @@ class VehicleController {
   std::vector<estimation::NeighbourEkf> neighbour_ekfs_;
   /// Presence of a tracked vehicle, from the relative measurements its filter accepted.
   struct Presence {
-    double seen = kNaN;            // stamp of the last accepted measurement [s]
-    double seen_since = kNaN;      // start of the current run of acceptances [s]
-    HeldFor grounded;              // seen on the ground (formation neighbours only)
-    HeldFor airborne;              // airborne again after landing
-    bool active = true;            // formation neighbour in the cost
-    bool landed = false;           // lost because seen on the ground
+    double seen = kNaN;        // stamp of the last accepted measurement [s]
+    double seen_since = kNaN;  // start of the current run of acceptances [s]
+    HeldFor grounded;          // seen on the ground (formation neighbours only)
+    HeldFor airborne;          // airborne again after landing
+    bool active = true;        // formation neighbour in the cost
+    bool landed = false;       // lost because seen on the ground
     /// Records an acceptance at `stamp`; a gap longer than `max_gap` starts a new run.
     void Accept(double stamp, double max_gap);
   };
@@ -315,11 +315,11 @@ class VehicleController {
   std::vector<Presence> presence_;  // formation neighbours, configuration order
   // Follower: the formation neighbours' acceleration estimates (neighbour_acceleration_decay).
   std::vector<AccelerationEstimate> neighbour_acceleration_;
-  NeighbourPlans plans_;            // cooperative: the formation neighbours' latest plans
-  double plan_time_ = kNaN;         // time of the last NMPC step (MakePlan) [s]
+  NeighbourPlans plans_;                  // cooperative: the formation neighbours' latest plans
+  double plan_time_ = kNaN;               // time of the last NMPC step (MakePlan) [s]
   Vec3 plan_disturbance_ = Vec3::Zero();  // its predicted external acceleration [m/s^2]
-  NeighbourDeparture departure_;    // neighbours leaving the formation (formation_ties.hpp)
-  bool leader_seen_down_ = false;   // the leader on the ground in a tracking slot
+  NeighbourDeparture departure_;          // neighbours leaving the formation (formation_ties.hpp)
+  bool leader_seen_down_ = false;         // the leader on the ground in a tracking slot
   RecoveryReason tie_loss_ = RecoveryReason::kNone;
   long neighbour_departures_ = 0;
 };
