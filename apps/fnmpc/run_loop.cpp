@@ -272,6 +272,8 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
             L.cost.push_back(out.cost);
           }
           if (out.guarded) ++L.guarded;
+          if (out.attitude_offset_bounded) ++L.attitude_offset_bounded;
+          if (out.nmpc && out.attitude_offset.allFinite()) L.attitude_offset = out.attitude_offset;
           if (out.neighbour_thrust_bounded > 0) {
             L.neighbour_thrust_bounded[static_cast<std::size_t>(out.neighbour_thrust_bound)] +=
                 out.neighbour_thrust_bounded;

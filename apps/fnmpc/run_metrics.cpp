@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include "apps/fnmpc/formation_print.hpp"
 #include "fnmpc/formation/neighbour_thrust.hpp"
@@ -123,6 +124,9 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
         }
         j["neighbour_thrust_bounded"] = b;
       }
+      j["attitude_offset_bounded"] = L.attitude_offset_bounded;
+      j["attitude_offset_deg"] = {Num(L.attitude_offset[0] * 180.0 / std::numbers::pi),
+                                  Num(L.attitude_offset[1] * 180.0 / std::numbers::pi)};
       j["estimator_rejections"] = r.estimator_rejections[i];
       j["thrust_jump_at_switch_n"] = Num(L.max_thrust_jump_at_switch);
       const sim::TrueState& x = r.final_state[i];

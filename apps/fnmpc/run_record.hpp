@@ -34,6 +34,10 @@ struct VehicleRecord {
   // Compensation::kWake: neighbour thrust estimates bounded (steps x neighbours), by
   // formation::ThrustBound (index 0 unused).
   std::array<long, 4> neighbour_thrust_bounded{};
+  // Compensation::kObserver on: steps whose attitude offset estimate was cut at its bound,
+  // and the last estimate of the NMPC phase (roll, pitch) [rad].
+  long attitude_offset_bounded = 0;
+  Vec<2> attitude_offset = Vec<2>::Constant(kNaN);
   double failsafe_time = kNaN;
   std::string failsafe_reason;
   double tie_loss_time = kNaN;  // follower landed for want of a tie to the leader [s]

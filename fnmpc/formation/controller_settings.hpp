@@ -49,6 +49,10 @@ struct ControllerSettings {
   double neighbour_acceleration_filter = 0.1;
   /// Cooperative mode: a neighbour's plan older than this is not used [s].
   double plan_timeout = 0.2;
+  /// Offset-free attitude (Compensation::kObserver on; attitude_offset.hpp): low-pass time
+  /// constant of the attitude offset estimate [s] and its bound [rad].
+  double attitude_offset_filter = 2.0;
+  double attitude_offset_max = 0.07;
   /// Follower: how its tie weight is shared among its neighbours (tie_weights.hpp).
   TieWeighting tie_weights = TieWeighting::kEqual;
 
@@ -76,6 +80,18 @@ struct ControllerSettings {
              "[s] cooperative: a neighbour's plan older than this (time since the control step "
              "that made it) is late and not used; the neighbour is then predicted at constant "
              "velocity");
+    a->Visit("controller.attitude_offset.filter_time", &attitude_offset_filter, Positive(),
+             "[s] observer level and above: low-pass time constant of the estimate of the "
+             "constant roll and pitch offset by which the vehicle's attitude misses the NMPC's "
+             "model (an autopilot's level-calibration bias: it settles at k ref + offset), from "
+             "the measured attitude and the references sent through the model's first-order "
+             "attitude map; the reference sent is the NMPC's minus offset / k (docs/scenarios.md "
+             "\"Compensation\")");
+    a->Visit("controller.attitude_offset.max", &attitude_offset_max, NonNegative(),
+             "[rad] bound of that estimate per axis (below `bounds.attitude_ref`); a cut "
+             "estimate is counted in summary.json (`attitude_offset_bounded`, steps). The NMPC's "
+             "reference bounds move with the correction, so the reference sent stays within "
+             "`bounds.attitude_ref` unclamped");
     a->VisitChoice("controller.tie_weights", &tie_weights, kTieWeightingChoice,
                    "follower: how its formation-tie weight (the active ties' count times "
                    "`weights.follower`) is shared among its neighbours, by their graph depth "

@@ -57,6 +57,10 @@ void ControllerConfig::Validate() const {
          "' is not implemented yet (accepted: " + kCompensationChoice.Accepted() + ")");
   }
   if (!(plan_timeout > 0.0)) fail("plan_timeout must be > 0 s");
+  if (!(attitude_offset_filter > 0.0) || !std::isfinite(attitude_offset_filter))
+    fail("attitude_offset.filter_time must be finite and > 0 s");
+  if (!(attitude_offset_max >= 0.0 && attitude_offset_max < max_attitude_ref))
+    fail("attitude_offset.max must be in [0, bounds.attitude_ref)");
   const int rule = static_cast<int>(tie_weights);
   if (rule < 0 || rule >= kTieWeightingChoice.count)
     fail("tie_weights must be one of " + kTieWeightingChoice.Accepted());
@@ -193,6 +197,9 @@ class NmpcCore {
   /// Initial guess from the estimate: the next Step iterates to convergence.
   virtual void Start(const NmpcInput& in, const Vec3& u_guess) = 0;
   virtual NmpcStep Step(const NmpcInput& in) = 0;
+  /// Attitude-reference bounds for the correction o the controller subtracts from the
+  /// NMPC's roll and pitch references (ShiftedInputBounds); zero: the configured bounds.
+  virtual void ShiftAttitudeBounds(const Vec<2>& o) = 0;
   /// KKT value and cost of the iterate after the last Step (N more integrations).
   virtual void Diagnose(double* kkt, double* cost) = 0;
   /// Predicted positions of the current iterate; `origin` is added to a follower's
@@ -299,6 +306,17 @@ void InputBounds(const ControllerConfig& c, Solver* s) {
   rti::quadrotor::SetInputLimits(s, c.thrust_min, c.thrust_max, c.max_attitude_ref);
 }
 
+// The attitude-reference bounds moved by the attitude offset's reference correction o (the
+// controller sends u - o, AttitudeOffset): u in [-max + o, max + o] keeps the reference sent
+// within +-max_attitude_ref without clamping it.
+template <class Solver>
+void ShiftedInputBounds(const ControllerConfig& c, const Vec<2>& o, Solver* s) {
+  const double m = c.max_attitude_ref;
+  const Vec3 lo(c.thrust_min, -m + o[0], -m + o[1]);
+  const Vec3 hi(c.thrust_max, m + o[0], m + o[1]);
+  for (int k = 0; k < s->horizon(); ++k) s->SetInputBounds(k, lo, hi);
+}
+
 // Bounds of the leader's position z and velocity, of the follower's displacement and
 // velocity: soft (exact-penalty slacks), so that no state can make a QP infeasible; the
 // input bounds stay hard.
@@ -336,6 +354,8 @@ class LeaderCore final : public NmpcCore {
     anchor_ = anchor;
     yaw_ref_ = yaw_ref;
   }
+
+  void ShiftAttitudeBounds(const Vec<2>& o) override { ShiftedInputBounds(c_, o, &solver_); }
 
   void Start(const NmpcInput& in, const Vec3& u_guess) override {
     solver_.InitializeGuess(State(in), u_guess);
@@ -474,6 +494,8 @@ class FollowerCore final : public NmpcCore {
   }
 
   void Engage(const Vec3& /*anchor*/, double yaw_ref) override { yaw_ref_ = yaw_ref; }
+
+  void ShiftAttitudeBounds(const Vec<2>& o) override { ShiftedInputBounds(c_, o, &solver_); }
 
   void Start(const NmpcInput& in, const Vec3& u_guess) override {
     ActiveNeighbours(in);
@@ -822,6 +844,10 @@ VehicleController::VehicleController(const ControllerConfig& config)
   // A gap of more than two missed steps restarts the derivative.
   neighbour_acceleration_.assign(nn, AccelerationEstimate(config_.neighbour_acceleration_filter,
                                                           2.5 * config_.rti.sample_time));
+  attitude_offset_ = AttitudeOffset(config_.params.attitude_time_constant.head<2>(),
+                                    config_.params.attitude_gain.head<2>(),
+                                    config_.attitude_offset_filter, config_.attitude_offset_max,
+                                    2.5 * config_.rti.sample_time);
   std::vector<int> neighbour_vehicles;
   for (const NeighbourTarget& n : config_.neighbours) neighbour_vehicles.push_back(n.vehicle);
   plans_ = NeighbourPlans(neighbour_vehicles);
@@ -1444,6 +1470,9 @@ ControlOutput VehicleController::Step(double t) {
         blend_start_ = t;
         if (config_.leader) anchor_ = Vec3(own.position.x(), own.position.y(), h);
         nmpc_->Engage(anchor_, yaw_ref_);
+        attitude_offset_.Reset();
+        applied_offset_.setZero();
+        nmpc_->ShiftAttitudeBounds(applied_offset_);
         reinit_pending_ = true;  // the first step iterates to convergence
       }
       break;
@@ -1503,6 +1532,19 @@ ControlOutput VehicleController::Step(double t) {
       }
       in.last_command = last_command_.allFinite() ? last_command_
                                                   : Vec3(config_.params.mass * kGravity, 0.0, 0.0);
+      // The NMPC's own input frame: the last reference sent plus the correction it carried.
+      in.last_command.tail<2>() += applied_offset_;
+      // Offset-free attitude (Compensation::kObserver on, after the blend from the take-off
+      // PID): the offset estimate from the attitude measured now and the reference sent last
+      // step, and the correction this step's reference carries (AttitudeOffset).
+      if (config_.compensation >= Compensation::kObserver &&
+          !(t < blend_start_ + config_.blend_time)) {
+        attitude_offset_.Observe(t, own.euler.head<2>());
+        applied_offset_ = attitude_offset_.reference_offset();
+        nmpc_->ShiftAttitudeBounds(applied_offset_);
+        out.attitude_offset_bounded = attitude_offset_.bounded();
+      }
+      out.attitude_offset = attitude_offset_.offset();
       // A non-finite estimate of d never enters the prediction (zero: today's controller).
       if (config_.compensation >= Compensation::kObserver && own.disturbance.allFinite()) {
         in.disturbance = own.disturbance;
@@ -1534,9 +1576,7 @@ ControlOutput VehicleController::Step(double t) {
       in.forced_failure =
           InjectedSolverFailure(config_.safety, config_.vehicle, t, config_.rti.sample_time);
       if (reinit_pending_) {
-        const Vec3 guess = last_command_.allFinite()
-                               ? last_command_
-                               : Vec3(config_.params.mass * kGravity, 0.0, 0.0);
+        const Vec3 guess = in.last_command;
         nmpc_->Start(in, guess);
         reinit_pending_ = false;
         nmpc_started_ = true;
@@ -1555,8 +1595,8 @@ ControlOutput VehicleController::Step(double t) {
       out.reference = s.reference;
       if (out.fallback) ++fallbacks_;
       thrust = s.u[0];
-      roll = s.u[1];
-      pitch = s.u[2];
+      roll = s.u[1] - applied_offset_[0];
+      pitch = s.u[2] - applied_offset_[1];
       Blend(t, &thrust, &roll, &pitch);
       d = ladder_.Update(t, true, out.fallback);
     } else {
@@ -1632,6 +1672,7 @@ ControlOutput VehicleController::Step(double t) {
     mean_thrust_ =
         std::isfinite(mean_thrust_) ? mean_thrust_ + a * (thrust - mean_thrust_) : thrust;
   }
+  if (phase_ == FlightPhase::kNmpc) attitude_offset_.Sent(Vec<2>(roll, pitch));
   out.phase = phase_;
   out.thrust = thrust;
   out.roll = roll;

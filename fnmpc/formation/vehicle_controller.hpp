@@ -12,6 +12,7 @@
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/estimation/neighbour_ekf.hpp"
 #include "fnmpc/estimation/vehicle_ekf.hpp"
+#include "fnmpc/formation/attitude_offset.hpp"
 #include "fnmpc/formation/controller_settings.hpp"
 #include "fnmpc/formation/formation_ties.hpp"
 #include "fnmpc/formation/neighbour_acceleration.hpp"
@@ -119,6 +120,11 @@ struct ControlOutput {
   /// acceleration, neighbour_thrust.hpp) was bounded at this step, and the last one's reason.
   int neighbour_thrust_bounded = 0;
   ThrustBound neighbour_thrust_bound = ThrustBound::kNone;
+  /// Compensation::kObserver on: the attitude offset estimate o_hat (roll, pitch) [rad] the
+  /// reference sent carries o_hat / k against (AttitudeOffset); NaN outside the NMPC.
+  Vec<2> attitude_offset = Vec<2>::Constant(kNaN);
+  /// That estimate was cut at +-`attitude_offset.max` at this step.
+  bool attitude_offset_bounded = false;
   Vec3 reference = Vec3::Constant(kNaN);  ///< leader position reference [m]
   double voltage = kNaN;                  ///< filtered measured battery voltage [V]
 };
@@ -315,6 +321,10 @@ class VehicleController {
   std::vector<Presence> presence_;  // formation neighbours, configuration order
   // Follower: the formation neighbours' acceleration estimates (neighbour_acceleration_decay).
   std::vector<AccelerationEstimate> neighbour_acceleration_;
+  // Offset-free attitude (Compensation::kObserver on): the estimate, and the correction
+  // (o_hat / k) the last NMPC reference sent carried, subtracted from the NMPC's u.
+  AttitudeOffset attitude_offset_;
+  Vec<2> applied_offset_ = Vec<2>::Zero();
   NeighbourPlans plans_;                  // cooperative: the formation neighbours' latest plans
   double plan_time_ = kNaN;               // time of the last NMPC step (MakePlan) [s]
   Vec3 plan_disturbance_ = Vec3::Zero();  // its predicted external acceleration [m/s^2]
