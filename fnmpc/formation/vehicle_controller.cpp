@@ -844,10 +844,9 @@ VehicleController::VehicleController(const ControllerConfig& config)
   // A gap of more than two missed steps restarts the derivative.
   neighbour_acceleration_.assign(nn, AccelerationEstimate(config_.neighbour_acceleration_filter,
                                                           2.5 * config_.rti.sample_time));
-  attitude_offset_ = AttitudeOffset(config_.params.attitude_time_constant.head<2>(),
-                                    config_.params.attitude_gain.head<2>(),
-                                    config_.attitude_offset_filter, config_.attitude_offset_max,
-                                    2.5 * config_.rti.sample_time);
+  attitude_offset_ = AttitudeOffset(
+      config_.params.attitude_time_constant.head<2>(), config_.params.attitude_gain.head<2>(),
+      config_.attitude_offset_filter, config_.attitude_offset_max, 2.5 * config_.rti.sample_time);
   std::vector<int> neighbour_vehicles;
   for (const NeighbourTarget& n : config_.neighbours) neighbour_vehicles.push_back(n.vehicle);
   plans_ = NeighbourPlans(neighbour_vehicles);

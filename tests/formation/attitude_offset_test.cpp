@@ -57,7 +57,7 @@ TEST(AttitudeOffsetTest, InvalidSamplesNeverReachTheEstimateAndItIsBounded) {
   // A non-finite angle, a missing reference, a gap and a second reference update nothing.
   est.Observe(0.0, Vec<2>(kNaN, 0.0));
   est.Sent(Vec<2>(0.0, 0.0));
-  est.Observe(kTs, Vec<2>(0.3, 0.3));  // previous angle unknown
+  est.Observe(kTs, Vec<2>(0.3, 0.3));      // previous angle unknown
   est.Observe(2 * kTs, Vec<2>(0.3, 0.3));  // no reference sent in between
   est.Sent(Vec<2>(0.0, 0.0));
   est.Observe(10.0, Vec<2>(0.3, 0.3));  // gap
@@ -99,7 +99,7 @@ struct BiasedPlant {
 };
 
 struct Hover {
-  double error = kNaN;           // final distance from the hover point [m]
+  double error = kNaN;             // final distance from the hover point [m]
   Vec<2> offset = Vec<2>::Zero();  // final attitude offset estimate [rad]
   bool bounded_beyond_limit = false;
 };
@@ -134,10 +134,11 @@ TEST(AttitudeOffsetTest, ObserverLevelRemovesTheOffsetOfAnAttitudeBias) {
   // When it holds its hover point for 20 s with each level
   const Hover none = HoldWithBias(Compensation::kNone, bias, 24.0);
   const Hover observer = HoldWithBias(Compensation::kObserver, bias, 24.0);
-  std::printf("[attitude offset] steady hover error: none %.4f m, observer %.5f m; estimate "
-              "(%.4f, %.4f) rad, k b (%.4f, %.4f) rad\n",
-              none.error, observer.error, observer.offset[0], observer.offset[1],
-              kGain[0] * bias[0], kGain[1] * bias[1]);
+  std::printf(
+      "[attitude offset] steady hover error: none %.4f m, observer %.5f m; estimate "
+      "(%.4f, %.4f) rad, k b (%.4f, %.4f) rad\n",
+      none.error, observer.error, observer.offset[0], observer.offset[1], kGain[0] * bias[0],
+      kGain[1] * bias[1]);
   // Then without the estimate the bias holds the vehicle off its point; with it the offset
   // is gone and the estimate is the bias through the model's gain
   EXPECT_GT(none.error, 0.01);
