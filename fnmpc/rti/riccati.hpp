@@ -71,7 +71,10 @@ void Recursion(const RtiDimensions& dims, const StageQp<Problem>& sq,
     ops.MultiplyARight(k, p, &pa);
     ops.MultiplyATransposed(k, pa, &apa);
     ws->p_mat[k] = sq.q_mat[k] + apa;
-    ws->p_mat[k].noalias() -= kt.transpose() * kt;
+    // Kt_k' as a column-major copy: the product then runs on whole columns (vectorised);
+    // with the transposed view of Kt_k its entries would be read one by one.
+    const Mat<kNx, kNu> ktt = kt.transpose();
+    ws->p_mat[k].noalias() -= ktt * kt;
   }
 }
 

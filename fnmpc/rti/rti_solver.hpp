@@ -5,6 +5,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <vector>
 
 #include "fnmpc/core/assert.hpp"
@@ -166,10 +167,7 @@ class RtiSolver : private detail::ProblemContract<Problem> {
       const Y wr = data_.w.cwiseProduct(y - data_.yref[k]);
       sq_.GaussNewtonBlocks(yx, &yu, data_.w, wr, s.weighted_rows, s.yx_cols, s.yu_cols,
                             s.q_pattern, s.s_pattern, k);
-      finite = finite && s.a_pattern.AllFinite(sq_.a[k]) && s.b_pattern.AllFinite(sq_.b[k]);
-      // (NaN in a weighted residual reaches q_k or r_k; zero-weight rows do not matter)
-      finite =
-          finite && sq_.d[k].allFinite() && sq_.q_vec[k].allFinite() && sq_.r_vec[k].allFinite();
+      finite = finite && StageFinite(k);
     }
     {
       YN yn;
@@ -333,6 +331,22 @@ class RtiSolver : private detail::ProblemContract<Problem> {
     qp_.SetFactorGiven(structure_.riccati);
     condensed_ = false;
     last_qp_active_ = true;
+  }
+
+  // Whether A_k, B_k, d_k, q_k and r_k of the linearisation are finite (NaN in a weighted
+  // residual reaches q_k or r_k; zero-weight rows do not matter). One sum per block: it is
+  // finite when every entry is and NaN or infinite when one is not (or when finite entries
+  // overflow, as wrong as NaN), instead of a test per entry. Small nx: A_k and B_k densely
+  // (their entries off the pattern are zero), else over their structural nonzeros.
+  [[nodiscard]] bool StageFinite(int k) const {
+    double sum = sq_.d[k].sum() + sq_.q_vec[k].sum() + sq_.r_vec[k].sum();
+    if constexpr (ProblemStructure<Problem>::kDenseStageProducts) {
+      sum += sq_.a[k].sum() + sq_.b[k].sum();
+    } else if (!structure_.a_pattern.AllFinite(sq_.a[k]) ||
+               !structure_.b_pattern.AllFinite(sq_.b[k])) {
+      return false;
+    }
+    return std::isfinite(sum);
   }
 
   // Dense condensing of the Hessian (or its factor) and the constraint rows.

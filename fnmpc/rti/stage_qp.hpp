@@ -3,6 +3,7 @@
 // Jacobians A_k, B_k and defects d_k, Gauss-Newton blocks Q_k, S_k, R_k, q_k, r_k.
 #pragma once
 
+#include <array>
 #include <vector>
 
 #include "fnmpc/core/types.hpp"
@@ -29,9 +30,9 @@ struct StageQp {
         r_vec(horizon, U::Zero()) {}
 
   // Gauss-Newton blocks of node k from the residual Jacobians, over the rows with a nonzero
-  // weight (rows) and the nonzero columns of each: Q_k = Jx' W Jx, S_k = Ju' W Jx, R_k = Ju' W Ju,
-  // q_k = Jx' W r, r_k = Ju' W r (the entries of q_pattern outside the rows' products are never
-  // written and stay zero; R_k and r_k only with ju).
+  // weight (rows) and the structural nonzeros of each: Q_k = Jx' W Jx, S_k = Ju' W Jx,
+  // R_k = Ju' W Ju, q_k = Jx' W r, r_k = Ju' W r (the entries of q_pattern outside the rows'
+  // products are never written and stay zero; R_k and r_k only with ju).
   template <class Jx, class Ju, class Wv, class Rv>
   void GaussNewtonBlocks(const Jx& jx, const Ju* ju, const Wv& w, const Rv& wr,
                          const std::vector<int>& rows, const std::vector<std::vector<int>>& x_cols,
@@ -46,21 +47,40 @@ struct StageQp {
       r_vec[k].setZero();
     }
     for (int r : rows) {
+      // Every structural entry reaches q_k and r_k, so that a NaN residual does; the products
+      // run over the entries that are nonzero at this iterate only (a zero entry adds exact
+      // zeros: an inactive one-sided penalty row, such as a collision row, adds nothing).
+      int nx = 0, nu = 0;
+      std::array<int, kNx> xc;
+      std::array<double, kNx> xv;
+      std::array<int, kNu> uc;
+      std::array<double, kNu> uv;
       for (int a : x_cols[r]) {
         const double ya = jx(r, a);
         q_vec[k][a] += ya * wr[r];
-        const double wya = w[r] * ya;
-        for (int b : x_cols[r]) q_mat[k](a, b) += wya * jx(r, b);
-        if (ju != nullptr) {
-          for (int i : u_cols[r]) s_mat[k](i, a) += (*ju)(r, i) * wya;
+        if (ya != 0.0) {
+          xc[nx] = a;
+          xv[nx++] = ya;
         }
       }
-      if (ju == nullptr) continue;
-      for (int i : u_cols[r]) {
-        const double yi = (*ju)(r, i);
-        r_vec[k][i] += yi * wr[r];
-        const double wyi = w[r] * yi;
-        for (int j : u_cols[r]) r_mat[k](i, j) += wyi * (*ju)(r, j);
+      if (ju != nullptr) {
+        for (int i : u_cols[r]) {
+          const double yi = (*ju)(r, i);
+          r_vec[k][i] += yi * wr[r];
+          if (yi != 0.0) {
+            uc[nu] = i;
+            uv[nu++] = yi;
+          }
+        }
+      }
+      for (int p = 0; p < nx; ++p) {
+        const double wya = w[r] * xv[p];
+        for (int q = 0; q < nx; ++q) q_mat[k](xc[p], xc[q]) += wya * xv[q];
+        for (int i = 0; i < nu; ++i) s_mat[k](uc[i], xc[p]) += uv[i] * wya;
+      }
+      for (int i = 0; i < nu; ++i) {
+        const double wyi = w[r] * uv[i];
+        for (int j = 0; j < nu; ++j) r_mat[k](uc[i], uc[j]) += wyi * uv[j];
       }
     }
   }

@@ -74,6 +74,34 @@ struct Scalar {
   }
 };
 
+// The point mass with a fault at the stages whose parameter names one: NaN or Inf in the
+// interval map's sensitivities, in the next state, or in a stage residual.
+struct FaultyPointMass {
+  static constexpr int kNx = 2, kNu = 1, kNy = 3, kNyN = 2;
+  enum Fault : int { kNone, kNanInA, kInfInB, kNanNextState, kNanWeightedRow, kNanUnweightedRow };
+  struct Params {
+    Fault fault = kNone;
+  };
+
+  Vec<2> Discretise(const Vec<2>& x, const Vec<1>& u, const Params& p, double dt, int steps,
+                    Mat<2, 2>* A, Mat<2, 1>* B) const {
+    Vec<2> next = PointMass{}.Discretise(x, u, {}, dt, steps, A, B);
+    if (A != nullptr && p.fault == kNanInA) (*A)(0, 1) = kNaN;
+    if (B != nullptr && p.fault == kInfInB) (*B)(1, 0) = kInf;
+    if (p.fault == kNanNextState) next[1] = kNaN;
+    return next;
+  }
+  void StageResidual(const Vec<2>& x, const Vec<1>& u, const Params& p, Vec<3>* y, Mat<3, 2>* yx,
+                     Mat<3, 1>* yu) const {
+    PointMass{}.StageResidual(x, u, {}, y, yx, yu);
+    if (p.fault == kNanWeightedRow) (*y)[0] = kNaN;
+    if (p.fault == kNanUnweightedRow) (*y)[1] = kNaN;
+  }
+  void TerminalResidual(const Vec<2>& x, const Params& /*p*/, Vec<2>* y, Mat<2, 2>* yx) const {
+    PointMass{}.TerminalResidual(x, {}, y, yx);
+  }
+};
+
 RtiSettings Settings(int horizon, double ts) {
   RtiSettings s;
   s.horizon = horizon;
@@ -183,6 +211,34 @@ TEST(ProblemContractTest, ScalarStateWithEmptyParamsConverges) {
   }
   // Then the state is regulated
   EXPECT_LT(std::abs(x[0]), 0.05);
+}
+
+TEST(ProblemContractTest, NonFiniteLinearisationFallsBackWithAFiniteCommand) {
+  using F = FaultyPointMass;
+  for (const F::Fault fault :
+       {F::kNanInA, F::kInfInB, F::kNanNextState, F::kNanWeightedRow, F::kNanUnweightedRow}) {
+    // Given the point mass with a fault at stage 4 of 10, the velocity row unweighted
+    RtiSolver<F> solver(F{}, Settings(10, 0.1), StateBoundLayout{});
+    solver.SetWeights(Vec<3>(10.0, 0.0, 0.1), Vec<2>(100.0, 10.0));
+    solver.SetParameters(4, F::Params{fault});
+    const Vec<2> x0(1.0, 0.0);
+    solver.InitializeGuess(x0, Vec<1>(0.25));
+    // When the solver runs its first call
+    Vec<1> u;
+    const RtiStatus status = solver.Step(x0, &u);
+    // Then NaN or Inf in the QP data is detected and the guess's first control applied, while
+    // NaN in a residual row of zero weight does not enter the QP
+    SCOPED_TRACE("fault " + std::to_string(fault));
+    EXPECT_TRUE(u.allFinite());
+    if (fault == F::kNanUnweightedRow) {
+      EXPECT_EQ(status, RtiStatus::kSuccess);
+      EXPECT_FALSE(solver.stats().fallback);
+    } else {
+      EXPECT_EQ(status, RtiStatus::kNanDetected);
+      EXPECT_TRUE(solver.stats().fallback);
+      EXPECT_EQ(u[0], 0.25);
+    }
+  }
 }
 
 TEST(ProblemContractTest, SettersRejectBadArgumentsAtSetup) {
