@@ -92,9 +92,11 @@ UpdateResult KalmanUpdate(const Vec<M>& y, const Mat<M, N>& H, const Mat<M, M>& 
     return r;
   }
   const Mat<N, M> K = llt.solve(HP).transpose();
-  const Mat<N, N> IKH = Mat<N, N>::Identity() - K * H;
   const Vec<N> x_new = *x + K * y;
-  Mat<N, N> P_new = IKH * (*P) * IKH.transpose() + K * R * K.transpose();
+  // The Joseph form through the rank-M factors: (I - K H) P = P - K (H P) and
+  // X (I - K H)' = X - (X H') K', no N x N x N product.
+  const Mat<N, N> X = *P - K * HP;
+  Mat<N, N> P_new = X - (X * H.transpose()) * K.transpose() + K * R * K.transpose();
   Symmetrize<N>(&P_new);
   if (!x_new.allFinite() || !P_new.allFinite() || (P_new.diagonal().array() <= 0.0).any()) {
     r.status = EkfStatus::kNumericalError;

@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "fnmpc/core/assert.hpp"
 #include "fnmpc/core/rotation.hpp"
 #include "fnmpc/estimation/ekf_math.hpp"
 
@@ -46,6 +47,26 @@ Mat3 EulerRateMatrix(double phi, double theta) {
 
 Vec3 EffectiveRefs(const Vec3& refs, const model::VehicleParams& v) {
   return {refs.x() + v.bias.roll, refs.y() + v.bias.pitch, refs.z()};
+}
+
+// P = F P F' + Q with F = I + A h + (A h)^2 / 2. Every motion model moves only position,
+// velocity and attitude: the rows of A below them are zero, so F is [F_top; 0 I] and
+// F P F' = [F_top P F_top', F_top P_right; (F_top P_right)', P_lower]: 9-row products
+// instead of three 18 x 18 x 18 ones.
+void PropagateCovariance(const VehicleStateCov& A, double h, const VehicleStateCov& Q,
+                         VehicleStateCov* P) {
+  constexpr int kTop = Idx::kAccelBias;
+  constexpr int kLow = kN - kTop;
+  FNMPC_ASSERT(A.bottomRows<kLow>().isZero(0.0));
+  const Mat<kTop, kN> Ah = A.topRows<kTop>() * h;
+  Mat<kTop, kN> F = Ah + 0.5 * Ah.leftCols<kTop>() * Ah;
+  F.leftCols<kTop>().diagonal().array() += 1.0;
+  const Mat<kTop, kN> FP = F * (*P);
+  P->topLeftCorner<kTop, kTop>() = FP * F.transpose();
+  P->topRightCorner<kTop, kLow>() = FP.rightCols<kLow>();
+  P->bottomLeftCorner<kLow, kTop>() = FP.rightCols<kLow>().transpose();
+  *P += Q;
+  Symmetrize<kN>(P);
 }
 
 }  // namespace
@@ -706,10 +727,7 @@ void VehicleEkf::PredictStep(double h, State* s) const {
   }
   s->x = x_new;
   s->x(Idx::kEuler + 2) = WrapAngle(s->x(Idx::kEuler + 2));
-  const VehicleStateCov Ah = A * h;
-  const VehicleStateCov F = VehicleStateCov::Identity() + Ah + 0.5 * Ah * Ah;
-  s->P = F * s->P * F.transpose() + Q;
-  Symmetrize<kN>(&s->P);
+  PropagateCovariance(A, h, Q, &s->P);
 }
 
 void VehicleEkf::FillHealth(const State& st, double t_query, EstimateHealth* h) const {
