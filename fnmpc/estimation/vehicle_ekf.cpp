@@ -580,6 +580,16 @@ void VehicleEkf::UpdateDisturbance(const Measurement& m, State* s) const {
   const double model_var =
       config_.command_accel_noise * config_.command_accel_noise * sc.imu.rate_hz;
   const Mat3 R = (sc.imu.noise.array().square() + model_var).matrix().asDiagonal();
+  if (s->P.block<Idx::kDisturbance, 3>(0, Idx::kDisturbance).isZero(0.0)) {
+    // d uncorrelated with the rest (always so with the IMU model, see above): the gain is
+    // zero outside d, and the update is that of d alone (d, Pd untouched if it fails).
+    Vec3 d = s->x.segment<3>(Idx::kDisturbance);
+    Mat3 Pd = s->P.block<3, 3>(Idx::kDisturbance, Idx::kDisturbance);
+    KalmanUpdate<3, 3>(y, Mat3::Identity(), R, kInf, &d, &Pd);
+    s->x.segment<3>(Idx::kDisturbance) = d;
+    s->P.block<3, 3>(Idx::kDisturbance, Idx::kDisturbance) = Pd;
+    return;
+  }
   Mat<3, kN> H = Mat<3, kN>::Zero();
   H.block<3, 3>(0, Idx::kDisturbance).setIdentity();
   KalmanUpdate<kN, 3>(y, H, R, kInf, &s->x, &s->P);
