@@ -55,6 +55,9 @@ struct ControllerSettings {
   double attitude_offset_max = 0.07;
   /// Follower: how its tie weight is shared among its neighbours (tie_weights.hpp).
   TieWeighting tie_weights = TieWeighting::kEqual;
+  /// Follower: scale of the discount of a tie that disagrees with the ties towards the
+  /// leader [m] (DiscountDisagreeingTies); 0: off.
+  double tie_disagreement = 0.25;
 
   template <class Archive>
   void Serialize(Archive* a) {
@@ -100,6 +103,14 @@ struct ControllerSettings {
                    "lowest depth among the active ones (the row ahead; a row-mate's tie then "
                    "carries weight only when no tie towards the leader is left). String "
                    "stability down the graph, docs/results.md \"Scale\"");
+    a->Visit("controller.tie_disagreement", &tie_disagreement, NonNegative(),
+             "[m] follower: every control step, a tie to a neighbour deeper than its shallowest "
+             "active neighbours (nearest the leader) is weighted by 1 / (1 + (e / "
+             "tie_disagreement)^2) on top of `tie_weights`, e the distance between the place "
+             "that tie asks for (the neighbour's estimate minus the desired offset) and the "
+             "place the shallowest ties ask for; the weights still sum to the active count. A "
+             "neighbour leaving its place (a dead controller, docs/safety.md) then stops "
+             "pulling the follower before it is dropped; 0 = off");
     a->Visit("controller.neighbour_acceleration.decay", &neighbour_acceleration_decay,
              NonNegative(),
              "[s] follower: each formation neighbour is predicted with its estimated acceleration "

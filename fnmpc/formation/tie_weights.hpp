@@ -2,6 +2,7 @@
 #pragma once
 
 #include "fnmpc/core/serialize.hpp"
+#include "fnmpc/core/types.hpp"
 
 /// How a follower shares its formation-tie weight among its neighbours (string stability down
 /// the graph, docs/results.md "Scale"). Pure arithmetic on the neighbours' graph depths,
@@ -35,5 +36,20 @@ inline const char* ToString(TieWeighting w) { return kTieWeightingNames[static_c
 /// stiffen or soften the follower). When an active neighbour's depth is unknown the rule
 /// cannot rank it and the weights are equal. No allocation.
 void TieWeights(TieWeighting rule, const int* depth, const bool* active, int n, double* w);
+
+/// Why discount a disagreeing tie: each tie asks for a place of the follower (the neighbour's
+/// position minus the desired offset), and in healthy flight these places agree to within the
+/// neighbours' formation errors (centimetres). A neighbour that leaves the formation (a dead
+/// controller's autopilot drifting down and sideways, docs/safety.md) asks for a place that
+/// moves away from the one its ties towards the leader ask for, and an equally weighted
+/// follower follows half of that until the neighbour is dropped. The ties of the lowest
+/// neighbour depth (nearest the leader) are the anchor: every deeper active tie's weight is
+/// multiplied by 1 / (1 + (e_j / scale)^2), e_j the distance [m] between its place
+/// `place[j]` and the anchor ties' mean place; then the active weights are scaled back to sum
+/// to their count, as TieWeights leaves them. scale <= 0, fewer than two active ties, no
+/// deeper tie or an unknown depth: `w` unchanged. `disagreement` (optional) receives per tie
+/// the per-axis |place_j - anchor| of a discounted tie, zero for the others. No allocation.
+void DiscountDisagreeingTies(const int* depth, const bool* active, const Vec3* place,
+                             double scale, int n, double* w, Vec3* disagreement = nullptr);
 
 }  // namespace fnmpc::formation

@@ -490,6 +490,7 @@ class FollowerCore final : public NmpcCore {
     params_.assign(solver_.horizon() + 1, Solver::P::Zero());
     active_.fill(false);
     for (int j = 0; j < nn_; ++j) active_[j] = true;
+    for (Vec3& e : disagreement_) e.setZero();
     Aggregate();
   }
 
@@ -499,6 +500,7 @@ class FollowerCore final : public NmpcCore {
 
   void Start(const NmpcInput& in, const Vec3& u_guess) override {
     ActiveNeighbours(in);
+    ShareTies(in);
     solver_.InitializeGuess(Stage(in), u_guess);
     first_ = true;
   }
@@ -513,6 +515,7 @@ class FollowerCore final : public NmpcCore {
     }
     first_ = false;
     ActiveNeighbours(in);
+    ShareTies(in);
     // The hover target under the whole predicted push now: d and the wake model's part.
     if (c_.compensation >= Compensation::kObserver) Targets(in.disturbance + in.wake);
     x0_ = Stage(in);
@@ -544,19 +547,24 @@ class FollowerCore final : public NmpcCore {
   // the rows get weight zero, the pattern is kept: no allocation).
   void Aggregate() {
     int n = 0;
-    Vec3 d = Vec3::Zero();
-    TieWeights(c_.tie_weights, depth_.data(), active_.data(), nn_, tie_.data());
-    for (int j = 0; j < nn_; ++j) {
-      if (!active_[j]) continue;
-      ++n;
-      d += tie_[j] * desired_[j];
-    }
+    TieWeights(c_.tie_weights, depth_.data(), active_.data(), nn_, rule_tie_.data());
+    tie_ = rule_tie_;
+    for (int j = 0; j < nn_; ++j) n += active_[j] ? 1 : 0;
     active_count_ = n;
-    if (n > 0) d /= n;
     w_active_ = w_;
     w_active_.head<6>() *= static_cast<double>(n);
     TerminalWeights(w_active_, &wn_active_);
     solver_.SetWeightValues(w_active_, wn_active_);
+    TieReference();
+  }
+
+  // The tie-weighted mean desired offset as every stage's reference.
+  void TieReference() {
+    Vec3 d = Vec3::Zero();
+    for (int j = 0; j < nn_; ++j) {
+      if (active_[j]) d += tie_[j] * desired_[j];
+    }
+    if (active_count_ > 0) d /= active_count_;
     for (int k = 0; k < solver_.horizon(); ++k) {
       yref_[k].head<3>() = d;
       solver_.SetReference(k, yref_[k]);
@@ -583,6 +591,32 @@ class FollowerCore final : public NmpcCore {
       active_[j] = in.active[j];
     }
     if (changed) Aggregate();
+  }
+
+  // The rule's weights discounted by each tie's disagreement with the ties towards the leader
+  // (ControllerSettings::tie_disagreement), from the current estimates: the place tie j asks
+  // for is the neighbour's relative position (in the frame of the desired offsets) minus its
+  // desired offset, as in SpreadCost. The disagreement also widens that neighbour's
+  // relative-position bound (Stage): the bound would otherwise drag the follower after a
+  // neighbour leaving sideways (triangle, follower2 killed, reality on, seed 4: follower1
+  // pulled 0.9 m by its 4 m bound to follower2 drifting 2.2 m).
+  void ShareTies(const NmpcInput& in) {
+    if (!(c_.tie_disagreement > 0.0) || active_count_ < 2) {
+      for (Vec3& e : disagreement_) e.setZero();
+      return;
+    }
+    const double psi = in.own[5];
+    std::array<Vec3, kMaxNeighbours> place{};
+    for (int j = 0; j < nn_; ++j) {
+      if (!active_[j]) continue;
+      ocp::RelativeRows::Write(c_.frame, in.neighbours[j].rel_pos, psi, 1.0, 0, 0, 0, &place[j],
+                               static_cast<Mat<3, 9>*>(nullptr));
+      place[j] -= desired_[j];
+    }
+    tie_ = rule_tie_;
+    DiscountDisagreeingTies(depth_.data(), active_.data(), place.data(), c_.tie_disagreement, nn_,
+                            tie_.data(), disagreement_.data());
+    TieReference();
   }
 
   // Neighbour j's prediction at stage k (relative position and velocity): constant velocity,
@@ -662,7 +696,7 @@ class FollowerCore final : public NmpcCore {
         Predict(j, k, &rel, &vel);
         rel_mean += tie_[j] * rel;
         vel_mean += tie_[j] * vel;
-        rti::quadrotor::IntersectRelativeBound(rel, b, &lo, &hi);
+        rti::quadrotor::IntersectRelativeBound(rel, b + disagreement_[j], &lo, &hi);
       }
       if (active_count_ > 0) {
         rel_mean /= active_count_;
@@ -738,7 +772,10 @@ class FollowerCore final : public NmpcCore {
   std::array<bool, kMaxNeighbours> active_{};
   std::array<Vec3, kMaxNeighbours> desired_{}, rel_{}, vel_{}, acc_{};
   std::array<int, kMaxNeighbours> depth_{};      // the neighbours' graph depths (-1: unknown)
-  std::array<double, kMaxNeighbours> tie_{};     // tie weights (TieWeights; sum: active_count_)
+  std::array<double, kMaxNeighbours> rule_tie_{};  // TieWeights of the active set
+  std::array<double, kMaxNeighbours> tie_{};  // rule_tie_ after ShareTies (sum: active_count_)
+  // per-axis disagreement of each tie with the anchor ties (ShareTies; zero when off) [m]
+  std::array<Vec3, kMaxNeighbours> disagreement_{};
   std::array<double, kMaxNeighbours> thrust_{};  // NeighbourState::thrust of the last Stage [N]
   double floor_ = -kInf;  // relative z of a neighbour resting on the ground [m] (Predict)
   const NeighbourPlans* plans_ = nullptr;  // cooperative: the plans of the last Stage (Predict)
@@ -792,6 +829,8 @@ constexpr double kTouchdownConfirmTime = 0.3;
 /// Landing: a site moved clear of a vehicle below is put this much beyond r_min from it [m],
 /// so that estimate noise (centimetres) does not move it again at every step.
 constexpr double kLandingSiteClearance = 0.1;
+// A descent that has waited this long [s] above a vehicle moves its site one clearance further.
+constexpr double kLandingSiteWait = 2.0;
 
 bool Rejected(estimation::EkfStatus s) {
   using estimation::EkfStatus;
@@ -1333,14 +1372,26 @@ bool VehicleController::TouchedDown(double t, double z, double vz) {
 // line from it through the site, else through the own position, else +x). The PID flies
 // there; the descent waits while the vehicle itself is within r_min of one of them
 // horizontally and less than 2 r_min above it (higher up it descends while it moves: the
-// landing from the take-off height fits its time). Returns true while the descent waits; a
-// move is logged in `out`.
+// landing from the take-off height fits its time). A vehicle can hold off its site (the PID's
+// offset under an attitude bias, until its slow integral removes it: 0.37 m from a grounded
+// vehicle with the site at 0.55 m, waiting past the end of the run), so after kLandingSiteWait
+// of waiting the site moves kLandingSiteClearance further from the vehicle it waits for, and
+// again after each further kLandingSiteWait. Returns true while the descent waits; a move is
+// logged in `out`.
 bool VehicleController::ClearLandingSite(double t, ControlOutput* out) {
   const double r = config_.safety.collision_radius;
   const Vec3& p = estimates_.own.position;
   if (!(r > 0.0) || !hold_xy_.allFinite() || !p.head<2>().allFinite()) return false;
   const double timeout = config_.safety.neighbour_timeout;
   bool wait = false;
+  auto shift = [&](const Vec<2>& site) {
+    hold_xy_ = site;
+    ++landing_site_shifts_;
+    if (out->recovery == RecoveryAction::kNone) {  // a kLand of the same step is kept
+      out->recovery = RecoveryAction::kShiftLandingSite;
+      out->recovery_reason = RecoveryReason::kVehicleBelow;
+    }
+  };
   auto check = [&](const estimation::NeighbourStateVec& x, double seen) {
     if (!x.head<3>().allFinite() || !std::isfinite(seen) || t - seen > timeout) return;
     if (x[2] >= r) return;  // clearly above: not in the descent's way
@@ -1349,14 +1400,16 @@ bool VehicleController::ClearLandingSite(double t, ControlOutput* out) {
     if (away.norm() < r) {
       if (away.norm() < 1e-3) away = -x.head<2>();
       if (away.norm() < 1e-3) away = Vec<2>(1.0, 0.0);
-      hold_xy_ = o + (r + kLandingSiteClearance) * away.normalized();
-      ++landing_site_shifts_;
-      if (out->recovery == RecoveryAction::kNone) {  // a kLand of the same step is kept
-        out->recovery = RecoveryAction::kShiftLandingSite;
-        out->recovery_reason = RecoveryReason::kVehicleBelow;
+      shift(o + (r + kLandingSiteClearance) * away.normalized());
+    }
+    if (x.head<2>().norm() < r && -x[2] < 2.0 * r) {
+      wait = true;
+      if (!std::isfinite(site_wait_start_)) site_wait_start_ = t;
+      if (t - site_wait_start_ >= kLandingSiteWait && x.head<2>().norm() > 1e-3) {
+        shift(hold_xy_ - kLandingSiteClearance * x.head<2>().normalized());
+        site_wait_start_ = t;
       }
     }
-    if (x.head<2>().norm() < r && -x[2] < 2.0 * r) wait = true;
   };
   // Two passes: a move away from one vehicle may bring the site near another.
   for (int pass = 0; pass < 2; ++pass) {
@@ -1365,6 +1418,7 @@ bool VehicleController::ClearLandingSite(double t, ControlOutput* out) {
     for (std::size_t k = 0; k < tracks_.size(); ++k)
       check(estimates_.others[k], tracks_[k].presence.seen);
   }
+  if (!wait) site_wait_start_ = kNaN;
   return wait;
 }
 
@@ -1376,6 +1430,7 @@ void VehicleController::BeginLanding(double t, double z) {
   contact_.Reset();
   z_ref_ = std::isfinite(z) ? z : config_.takeoff_height;
   hold_xy_ = estimates_.own.position.head<2>();
+  site_wait_start_ = kNaN;
   // From the recent mean thrust, not the last command: the PID's integral is the thrust
   // that holds the vehicle, and the landing may start close to the ground.
   const double thrust = std::isfinite(mean_thrust_) ? mean_thrust_ : last_command_[0];

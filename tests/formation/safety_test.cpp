@@ -223,7 +223,9 @@ struct LandingResult {
   double min_distance = kInf, final_horizontal = kNaN;
   std::vector<ControlOutput> out;
 };
-LandingResult LandBesideDownedVehicle(double collision_radius) {
+// `roll_bias` [rad] is added to every roll command on its way to the plant (an autopilot's
+// attitude bias, which the landing PID's position loop holds against with an offset).
+LandingResult LandBesideDownedVehicle(double collision_radius, double roll_bias = 0.0) {
   ControllerConfig cfg = FollowerOfTwo();
   cfg.safety.collision_radius = collision_radius;
   cfg.landing_time = 12.0;
@@ -239,7 +241,9 @@ LandingResult LandBesideDownedVehicle(double collision_radius) {
     const estimation::VehicleEstimate e =
         SenseTwo(plant, t, kLeaderStart, Vec3::Zero(), p2, Vec3::Zero(), &nb);
     r.out.push_back(c.ControlWithEstimates(t, e, nb));
-    plant.Step(r.out.back());
+    ControlOutput applied = r.out.back();
+    applied.roll += roll_bias;
+    plant.Step(applied);
     if (c.phase() == FlightPhase::kLanding || c.phase() == FlightPhase::kLanded)
       r.min_distance = std::min(r.min_distance, (plant.x.head<3>() - p2).norm());
   }
@@ -272,6 +276,23 @@ TEST(SafetyTest, LandingMovesItsSiteClearOfAVehicleBelow) {
   // near the moved site (r_min + 0.1 m; the PID's position loop overshoots a step by about
   // 0.1 m: its integral's zero)
   EXPECT_LT(on.final_horizontal, r + 0.1 + 0.15);
+  EXPECT_GT(on.min_distance, r - 0.02);
+}
+
+TEST(SafetyTest, LandingHeldOffItsSiteMovesTheSiteOnInsteadOfWaiting) {
+  // Given a follower whose autopilot rolls 0.03 rad more than commanded: its landing PID holds
+  // it about 0.13 m off the site, towards the downed vehicle
+  const double r = 0.45;
+  const LandingResult on = LandBesideDownedVehicle(r, -0.03);
+  int shifts = 0;
+  for (const ControlOutput& o : on.out) shifts += o.recovery == RecoveryAction::kShiftLandingSite;
+  std::printf("[   INFO   ] held off its site: %d site moves, final horizontal %.3f m, min distance "
+              "%.3f m, landed at %.2f s\n",
+              shifts, on.final_horizontal, on.min_distance, on.out.back().time);
+  // Then the site moves on while the descent waits (more than the one move), the vehicle
+  // lands in the run (LandBesideDownedVehicle checks) and clear of the vehicle below
+  EXPECT_GE(shifts, 2);
+  EXPECT_GT(on.final_horizontal, r);
   EXPECT_GT(on.min_distance, r - 0.02);
 }
 

@@ -50,6 +50,57 @@ TEST(TieWeightsTest, AnUnknownDepthFallsBackToEqualWeights) {
   EXPECT_EQ(none, (std::array<double, 4>{0.0, 0.0, 0.0, 0.0}));
 }
 
+// A row-mate that leaves its place loses its share to the tie towards the leader; agreeing
+// ties keep equal weights.
+TEST(TieWeightsTest, DisagreeingDeeperTieLosesItsShare) {
+  // Given the triangle's follower1: the leader (depth 0) and follower2 (depth 1), equal rule
+  const std::array<int, 2> depth{0, 1};
+  const std::array<bool, 2> active{true, true};
+  const auto discounted = [&](double e) {
+    std::array<double, 2> w{1.0, 1.0};
+    // The leader's tie asks for (1, 2, 0), follower2's for a place e away
+    const std::array<Vec3, 2> place{Vec3(1.0, 2.0, 0.0), Vec3(1.0, 2.0, 0.0) + e * Vec3(0.6, 0.0, -0.8)};
+    DiscountDisagreeingTies(depth.data(), active.data(), place.data(), 0.25, 2, w.data());
+    return w;
+  };
+  // When follower2 asks for a place 2 cm off the leader's (healthy flight)
+  const auto healthy = discounted(0.02);
+  // Then the weights stay within 1 % of equal, and still sum to the active count
+  EXPECT_NEAR(healthy[1], 1.0, 0.01);
+  EXPECT_DOUBLE_EQ(healthy[0] + healthy[1], 2.0);
+  // When it is as far off as the scale: the deeper tie's share halves relative to the anchor
+  const auto half = discounted(0.25);
+  EXPECT_DOUBLE_EQ(half[1] / half[0], 0.5);
+  // And 1 m off: the follower follows under 6 % of it (w1 / (w0 + w1))
+  const auto far = discounted(1.0);
+  EXPECT_LT(far[1] / (far[0] + far[1]), 0.06);
+  EXPECT_DOUBLE_EQ(far[0] + far[1], 2.0);
+}
+
+TEST(TieWeightsTest, DisagreementLeavesAnchorsUnknownDepthsAndTheOffSwitchAlone) {
+  // Each place 0.8 m from the others' mean when deeper; the two anchors agree
+  const std::array<Vec3, 3> place{Vec3(0.0, 1.0, 0.0), Vec3(0.0, 1.0, 0.0), Vec3(0.0, 1.8, 0.0)};
+  const auto run = [&](std::array<int, 3> depth, std::array<bool, 3> active, double scale) {
+    std::array<double, 3> w{1.0, 1.0, active[2] ? 1.0 : 0.0};
+    DiscountDisagreeingTies(depth.data(), active.data(), place.data(), scale, 3, w.data());
+    return w;
+  };
+  // Ties of one depth only (a rear follower tied to two vehicles of the row ahead): no anchor
+  // to rank them by, equal weights
+  EXPECT_EQ(run({2, 2, 2}, {true, true, true}, 0.25), (std::array<double, 3>{1.0, 1.0, 1.0}));
+  // An unknown depth: unchanged
+  EXPECT_EQ(run({0, -1, 1}, {true, true, true}, 0.25), (std::array<double, 3>{1.0, 1.0, 1.0}));
+  // scale 0 switches it off
+  EXPECT_EQ(run({0, 1, 1}, {true, true, true}, 0.0), (std::array<double, 3>{1.0, 1.0, 1.0}));
+  // One active tie: unchanged
+  EXPECT_EQ(run({0, 1, 1}, {false, true, false}, 0.25), (std::array<double, 3>{1.0, 1.0, 0.0}));
+  // Two anchors and one deeper tie: the anchors share what the deeper one loses
+  const auto w = run({1, 1, 2}, {true, true, true}, 0.4);
+  EXPECT_DOUBLE_EQ(w[0], w[1]);
+  EXPECT_NEAR(w[2] / w[0], 1.0 / (1.0 + 4.0), 1e-12);
+  EXPECT_DOUBLE_EQ(w[0] + w[1] + w[2], 3.0);
+}
+
 // The depths come from the ties (TieDepths), not from a hand-written list: in the generated
 // 10-vehicle wedge the edge followers' second tie is a row-mate, which the depth rule leaves
 // out, and the middle ones keep both ties to the row ahead.
