@@ -108,9 +108,10 @@ struct ControllerSettings {
              "active neighbours (nearest the leader) is weighted by 1 / (1 + (e / "
              "tie_disagreement)^2) on top of `tie_weights`, e the distance between the place "
              "that tie asks for (the neighbour's estimate minus the desired offset) and the "
-             "place the shallowest ties ask for; the weights still sum to the active count. A "
-             "neighbour leaving its place (a dead controller, docs/safety.md) then stops "
-             "pulling the follower before it is dropped; 0 = off");
+             "place the shallowest ties ask for; the weights still sum to the active count, and "
+             "e per axis widens that neighbour's `relative_position_bound`. A neighbour leaving "
+             "its place (a dead controller, docs/safety.md) then stops pulling the follower "
+             "before it is dropped; 0 = off");
     a->Visit("controller.neighbour_acceleration.decay", &neighbour_acceleration_decay,
              NonNegative(),
              "[s] follower: each formation neighbour is predicted with its estimated acceleration "

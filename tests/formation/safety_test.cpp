@@ -223,9 +223,10 @@ struct LandingResult {
   double min_distance = kInf, final_horizontal = kNaN;
   std::vector<ControlOutput> out;
 };
-// `roll_bias` [rad] is added to every roll command on its way to the plant (an autopilot's
-// attitude bias, which the landing PID's position loop holds against with an offset).
-LandingResult LandBesideDownedVehicle(double collision_radius, double roll_bias = 0.0) {
+// `tilt_bias` [rad] is added to every pitch command and subtracted from every roll command on
+// their way to the plant (an autopilot's attitude bias, tilting it towards the downed vehicle;
+// the landing PID's position loop holds against it with an offset).
+LandingResult LandBesideDownedVehicle(double collision_radius, double tilt_bias = 0.0) {
   ControllerConfig cfg = FollowerOfTwo();
   cfg.safety.collision_radius = collision_radius;
   cfg.landing_time = 12.0;
@@ -242,7 +243,8 @@ LandingResult LandBesideDownedVehicle(double collision_radius, double roll_bias 
         SenseTwo(plant, t, kLeaderStart, Vec3::Zero(), p2, Vec3::Zero(), &nb);
     r.out.push_back(c.ControlWithEstimates(t, e, nb));
     ControlOutput applied = r.out.back();
-    applied.roll += roll_bias;
+    applied.roll -= tilt_bias;
+    applied.pitch += tilt_bias;
     plant.Step(applied);
     if (c.phase() == FlightPhase::kLanding || c.phase() == FlightPhase::kLanded)
       r.min_distance = std::min(r.min_distance, (plant.x.head<3>() - p2).norm());
@@ -280,10 +282,10 @@ TEST(SafetyTest, LandingMovesItsSiteClearOfAVehicleBelow) {
 }
 
 TEST(SafetyTest, LandingHeldOffItsSiteMovesTheSiteOnInsteadOfWaiting) {
-  // Given a follower whose autopilot rolls 0.03 rad more than commanded: its landing PID holds
-  // it about 0.13 m off the site, towards the downed vehicle
+  // Given a follower whose autopilot tilts 0.05 rad (roll and pitch) towards the downed
+  // vehicle more than commanded: its landing PID holds it off the moved site towards it
   const double r = 0.45;
-  const LandingResult on = LandBesideDownedVehicle(r, -0.03);
+  const LandingResult on = LandBesideDownedVehicle(r, 0.05);
   int shifts = 0;
   for (const ControlOutput& o : on.out) shifts += o.recovery == RecoveryAction::kShiftLandingSite;
   std::printf("[   INFO   ] held off its site: %d site moves, final horizontal %.3f m, min distance "
@@ -402,6 +404,52 @@ double SinkBehindDescendingNeighbour(const ControllerConfig& cfg, double t_fail,
   EXPECT_EQ(c.phase(), FlightPhase::kNmpc);
   EXPECT_EQ(c.tie_loss(), RecoveryReason::kNone);
   return sink;
+}
+
+/// The follower of FollowerOfTwo with the neighbours' depths known (leader 0, vehicle 2 a
+/// row-mate at 1); from 8 s vehicle 2 drifts sideways at 0.6 m/s for 2 s (a killed
+/// controller's autopilot holding its last tilt) and stops. Returns the follower's largest
+/// horizontal excursion from its place at 8 s [m].
+double ExcursionBehindDriftingNeighbour(double tie_disagreement) {
+  ControllerConfig cfg = FollowerOfTwo();
+  cfg.leader_vehicle = 0;
+  cfg.neighbours[0].depth = 0;
+  cfg.neighbours[1].depth = 1;
+  cfg.tie_disagreement = tie_disagreement;
+  VehicleController c(cfg);
+  Plant plant;
+  Vec3 p2 = kVehicle2Start;
+  std::vector<estimation::NeighbourStateVec> nb;
+  Vec3 place = Vec3::Constant(kNaN);
+  double excursion = 0.0;
+  for (double t = 0.0; t <= 14.0; t += kTs) {
+    const Vec3 v2 = t >= 8.0 && t < 10.0 ? Vec3(0.0, 0.6, 0.0) : Vec3::Zero();
+    p2 += kTs * v2;
+    const estimation::VehicleEstimate e = SenseTwo(plant, t, kLeaderStart, Vec3::Zero(), p2, v2, &nb);
+    const ControlOutput o = c.ControlWithEstimates(t, e, nb);
+    EXPECT_FALSE(o.fallback) << "t = " << t;
+    plant.Step(o);
+    if (t >= 8.0) {
+      if (!place.allFinite()) place = plant.x.head<3>();
+      excursion = std::max(excursion, (plant.x.head<2>() - place.head<2>()).norm());
+    }
+  }
+  EXPECT_TRUE(c.neighbour_active(1));  // sideways: the departure rule does not drop it
+  return excursion;
+}
+
+TEST(SafetyTest, RowMateDriftingSidewaysPullsTheFollowerLittle) {
+  // Given the follower with equal tie weights, when its row-mate drifts 1.2 m sideways
+  const double off = ExcursionBehindDriftingNeighbour(0.0);
+  const double on = ExcursionBehindDriftingNeighbour(0.25);
+  std::printf("[   INFO   ] excursion behind a drifting row-mate: %.3f m equal weights, %.3f m "
+              "with tie_disagreement 0.25 m\n",
+              off, on);
+  // Then with equal weights it follows about half of it; discounting the disagreeing tie
+  // leaves it near its place relative to the leader: what it still follows is the start of
+  // the drift, while the disagreement is below the scale (under a third of the excursion)
+  EXPECT_GT(off, 0.4);
+  EXPECT_LT(on, off / 3.0);
 }
 
 TEST(SafetyTest, NeighbourDescendingOutOfTheFormationLeavesTheCostBeforeItLands) {
