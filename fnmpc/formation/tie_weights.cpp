@@ -31,8 +31,8 @@ void TieWeights(TieWeighting rule, const int* depth, const bool* active, int n, 
   for (int j = 0; j < n; ++j) w[j] *= count / sum;
 }
 
-void DiscountDisagreeingTies(const int* depth, const bool* active, const Vec3* place,
-                             double scale, int n, double* w, Vec3* disagreement) {
+void DiscountDisagreeingTies(const int* depth, const bool* active, const Vec3* place, double scale,
+                             int n, double* w, Vec3* disagreement) {
   if (disagreement != nullptr) {
     for (int j = 0; j < n; ++j) disagreement[j].setZero();
   }

@@ -49,7 +49,7 @@ void TieWeights(TieWeighting rule, const int* depth, const bool* active, int n, 
 /// to their count, as TieWeights leaves them. scale <= 0, fewer than two active ties, no
 /// deeper tie or an unknown depth: `w` unchanged. `disagreement` (optional) receives per tie
 /// the per-axis |place_j - anchor| of a discounted tie, zero for the others. No allocation.
-void DiscountDisagreeingTies(const int* depth, const bool* active, const Vec3* place,
-                             double scale, int n, double* w, Vec3* disagreement = nullptr);
+void DiscountDisagreeingTies(const int* depth, const bool* active, const Vec3* place, double scale,
+                             int n, double* w, Vec3* disagreement = nullptr);
 
 }  // namespace fnmpc::formation

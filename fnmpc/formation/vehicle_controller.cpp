@@ -771,9 +771,9 @@ class FollowerCore final : public NmpcCore {
   int nn_ = 0, active_count_ = 0;
   std::array<bool, kMaxNeighbours> active_{};
   std::array<Vec3, kMaxNeighbours> desired_{}, rel_{}, vel_{}, acc_{};
-  std::array<int, kMaxNeighbours> depth_{};      // the neighbours' graph depths (-1: unknown)
+  std::array<int, kMaxNeighbours> depth_{};        // the neighbours' graph depths (-1: unknown)
   std::array<double, kMaxNeighbours> rule_tie_{};  // TieWeights of the active set
-  std::array<double, kMaxNeighbours> tie_{};  // rule_tie_ after ShareTies (sum: active_count_)
+  std::array<double, kMaxNeighbours> tie_{};       // rule_tie_ after ShareTies (sum: active_count_)
   // per-axis disagreement of each tie with the anchor ties (ShareTies; zero when off) [m]
   std::array<Vec3, kMaxNeighbours> disagreement_{};
   std::array<double, kMaxNeighbours> thrust_{};  // NeighbourState::thrust of the last Stage [N]

@@ -294,7 +294,7 @@ class VehicleController {
   HeldFor contact_;  // the current ground contact (TouchedDown)
   long landing_site_shifts_ = 0;
   double site_wait_start_ = kNaN;  // start of the landing's current wait above a vehicle [s]
-  double voltage_ = kNaN;  // filtered battery voltage
+  double voltage_ = kNaN;          // filtered battery voltage
   double voltage_stamp_ = kNaN;
   double yaw_ref_ = kNaN;
   Vec3 anchor_ = Vec3::Constant(kNaN);

@@ -288,9 +288,10 @@ TEST(SafetyTest, LandingHeldOffItsSiteMovesTheSiteOnInsteadOfWaiting) {
   const LandingResult on = LandBesideDownedVehicle(r, 0.05);
   int shifts = 0;
   for (const ControlOutput& o : on.out) shifts += o.recovery == RecoveryAction::kShiftLandingSite;
-  std::printf("[   INFO   ] held off its site: %d site moves, final horizontal %.3f m, min distance "
-              "%.3f m, landed at %.2f s\n",
-              shifts, on.final_horizontal, on.min_distance, on.out.back().time);
+  std::printf(
+      "[   INFO   ] held off its site: %d site moves, final horizontal %.3f m, min distance "
+      "%.3f m, landed at %.2f s\n",
+      shifts, on.final_horizontal, on.min_distance, on.out.back().time);
   // Then the site moves on while the descent waits (more than the one move), the vehicle
   // lands in the run (LandBesideDownedVehicle checks) and clear of the vehicle below
   EXPECT_GE(shifts, 2);
@@ -425,7 +426,8 @@ double ExcursionBehindDriftingNeighbour(double tie_disagreement) {
   for (double t = 0.0; t <= 14.0; t += kTs) {
     const Vec3 v2 = t >= 8.0 && t < 10.0 ? Vec3(0.0, 0.6, 0.0) : Vec3::Zero();
     p2 += kTs * v2;
-    const estimation::VehicleEstimate e = SenseTwo(plant, t, kLeaderStart, Vec3::Zero(), p2, v2, &nb);
+    const estimation::VehicleEstimate e =
+        SenseTwo(plant, t, kLeaderStart, Vec3::Zero(), p2, v2, &nb);
     const ControlOutput o = c.ControlWithEstimates(t, e, nb);
     EXPECT_FALSE(o.fallback) << "t = " << t;
     plant.Step(o);
@@ -442,9 +444,10 @@ TEST(SafetyTest, RowMateDriftingSidewaysPullsTheFollowerLittle) {
   // Given the follower with equal tie weights, when its row-mate drifts 1.2 m sideways
   const double off = ExcursionBehindDriftingNeighbour(0.0);
   const double on = ExcursionBehindDriftingNeighbour(0.25);
-  std::printf("[   INFO   ] excursion behind a drifting row-mate: %.3f m equal weights, %.3f m "
-              "with tie_disagreement 0.25 m\n",
-              off, on);
+  std::printf(
+      "[   INFO   ] excursion behind a drifting row-mate: %.3f m equal weights, %.3f m "
+      "with tie_disagreement 0.25 m\n",
+      off, on);
   // Then with equal weights it follows about half of it; discounting the disagreeing tie
   // leaves it near its place relative to the leader: what it still follows is the start of
   // the drift, while the disagreement is below the scale (under a third of the excursion)

@@ -59,7 +59,8 @@ TEST(TieWeightsTest, DisagreeingDeeperTieLosesItsShare) {
   const auto discounted = [&](double e) {
     std::array<double, 2> w{1.0, 1.0};
     // The leader's tie asks for (1, 2, 0), follower2's for a place e away
-    const std::array<Vec3, 2> place{Vec3(1.0, 2.0, 0.0), Vec3(1.0, 2.0, 0.0) + e * Vec3(0.6, 0.0, -0.8)};
+    const std::array<Vec3, 2> place{Vec3(1.0, 2.0, 0.0),
+                                    Vec3(1.0, 2.0, 0.0) + e * Vec3(0.6, 0.0, -0.8)};
     DiscountDisagreeingTies(depth.data(), active.data(), place.data(), 0.25, 2, w.data());
     return w;
   };
