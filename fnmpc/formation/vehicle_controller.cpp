@@ -614,10 +614,9 @@ class FollowerCore final : public NmpcCore {
       place[j] -= desired_[j];
     }
     tie_ = rule_tie_;
-    // The references change only with the weights (an unknown depth or one depth only: never).
-    if (DiscountDisagreeingTies(depth_.data(), active_.data(), place.data(), c_.tie_disagreement,
-                                nn_, tie_.data(), disagreement_.data()))
-      TieReference();
+    DiscountDisagreeingTies(depth_.data(), active_.data(), place.data(), c_.tie_disagreement, nn_,
+                            tie_.data(), disagreement_.data());
+    TieReference();
   }
 
   // Neighbour j's prediction at stage k (relative position and velocity): constant velocity,
