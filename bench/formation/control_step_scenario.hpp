@@ -16,6 +16,7 @@ namespace fnmpc::bench {
 /// constant push d on the plant that the estimate reports (hover targets and the acceleration
 /// parameter in use). wake: Compensation::kWake with neighbour 0 hovering 0.8 m above and
 /// 0.25 m beside (the follower in its wake: both wake slots in use, one with a push).
+/// Neighbour 0 is the leader (depth 0), neighbour 1 a row-mate (depth 1), as in the triangle.
 struct ControlStepVariant {
   bool rate = false, close = false, observer = false, wake = false;
 };
@@ -56,7 +57,8 @@ class ControlStepScenario {
     formation::ControllerConfig c = formation::testing::BaseConfig(false);
     p0_ = v->wake ? Vec3(0.25, 0.0, 1.9) : Vec3(1.3, -0.8, 1.1);
     p1_ = v->close ? Vec3(0.0, 0.4, 1.1) : Vec3(-1.7, -3.8, 1.1);
-    c.neighbours = {{0, p0_ - Vec3(0.0, 0.0, 1.1)}, {2, p1_ - Vec3(0.0, 0.0, 1.1)}};
+    // The triangle's depths (the leader, a row-mate): the tie-disagreement discount acts.
+    c.neighbours = {{0, p0_ - Vec3(0.0, 0.0, 1.1), 0}, {2, p1_ - Vec3(0.0, 0.0, 1.1), 1}};
     v->observer = v->observer || v->wake;
     if (v->rate) {
       c.weights.thrust_rate = 2.0;

@@ -31,20 +31,20 @@ void TieWeights(TieWeighting rule, const int* depth, const bool* active, int n, 
   for (int j = 0; j < n; ++j) w[j] *= count / sum;
 }
 
-void DiscountDisagreeingTies(const int* depth, const bool* active, const Vec3* place, double scale,
+bool DiscountDisagreeingTies(const int* depth, const bool* active, const Vec3* place, double scale,
                              int n, double* w, Vec3* disagreement) {
   if (disagreement != nullptr) {
     for (int j = 0; j < n; ++j) disagreement[j].setZero();
   }
-  if (!(scale > 0.0)) return;
+  if (!(scale > 0.0)) return false;
   int count = 0, lowest = -1;
   for (int j = 0; j < n; ++j) {
     if (!active[j]) continue;
-    if (depth[j] < 0) return;
+    if (depth[j] < 0) return false;
     ++count;
     lowest = lowest < 0 ? depth[j] : std::min(lowest, depth[j]);
   }
-  if (count < 2) return;
+  if (count < 2) return false;
   Vec3 anchor = Vec3::Zero();
   int anchors = 0;
   for (int j = 0; j < n; ++j) {
@@ -55,9 +55,11 @@ void DiscountDisagreeingTies(const int* depth, const bool* active, const Vec3* p
   }
   anchor /= anchors;
   double sum = 0.0;
+  bool deeper = false;
   for (int j = 0; j < n; ++j) {
     if (!active[j]) continue;
     if (depth[j] > lowest) {
+      deeper = true;
       const Vec3 off = place[j] - anchor;
       const double e = off.norm() / scale;
       w[j] /= 1.0 + e * e;
@@ -65,8 +67,9 @@ void DiscountDisagreeingTies(const int* depth, const bool* active, const Vec3* p
     }
     sum += w[j];
   }
-  if (!(sum > 0.0)) return;
+  if (!(sum > 0.0)) return false;
   for (int j = 0; j < n; ++j) w[j] *= count / sum;
+  return deeper;
 }
 
 }  // namespace fnmpc::formation

@@ -48,8 +48,9 @@ void TieWeights(TieWeighting rule, const int* depth, const bool* active, int n, 
 /// `place[j]` and the anchor ties' mean place; then the active weights are scaled back to sum
 /// to their count, as TieWeights leaves them. scale <= 0, fewer than two active ties, no
 /// deeper tie or an unknown depth: `w` unchanged. `disagreement` (optional) receives per tie
-/// the per-axis |place_j - anchor| of a discounted tie, zero for the others. No allocation.
-void DiscountDisagreeingTies(const int* depth, const bool* active, const Vec3* place, double scale,
+/// the per-axis |place_j - anchor| of a discounted tie, zero for the others. Returns whether
+/// any weight was discounted. No allocation.
+bool DiscountDisagreeingTies(const int* depth, const bool* active, const Vec3* place, double scale,
                              int n, double* w, Vec3* disagreement = nullptr);
 
 }  // namespace fnmpc::formation

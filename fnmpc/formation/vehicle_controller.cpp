@@ -198,7 +198,7 @@ class NmpcCore {
   virtual void Start(const NmpcInput& in, const Vec3& u_guess) = 0;
   virtual NmpcStep Step(const NmpcInput& in) = 0;
   /// Attitude-reference bounds for the correction o the controller subtracts from the
-  /// NMPC's roll and pitch references (ShiftedInputBounds); zero: the configured bounds.
+  /// NMPC's roll and pitch references (InputBounds); zero: the configured bounds.
   virtual void ShiftAttitudeBounds(const Vec<2>& o) = 0;
   /// KKT value and cost of the iterate after the last Step (N more integrations).
   virtual void Diagnose(double* kkt, double* cost) = 0;
@@ -301,20 +301,12 @@ struct HoverTarget {
   }
 };
 
+// The controller's input bounds; o: the attitude offset's reference correction (the
+// controller sends u - o, AttitudeOffset), which moves the attitude bounds to
+// [-max + o, max + o] so that the reference sent stays within +-max_attitude_ref unclamped.
 template <class Solver>
-void InputBounds(const ControllerConfig& c, Solver* s) {
-  rti::quadrotor::SetInputLimits(s, c.thrust_min, c.thrust_max, c.max_attitude_ref);
-}
-
-// The attitude-reference bounds moved by the attitude offset's reference correction o (the
-// controller sends u - o, AttitudeOffset): u in [-max + o, max + o] keeps the reference sent
-// within +-max_attitude_ref without clamping it.
-template <class Solver>
-void ShiftedInputBounds(const ControllerConfig& c, const Vec<2>& o, Solver* s) {
-  const double m = c.max_attitude_ref;
-  const Vec3 lo(c.thrust_min, -m + o[0], -m + o[1]);
-  const Vec3 hi(c.thrust_max, m + o[0], m + o[1]);
-  for (int k = 0; k < s->horizon(); ++k) s->SetInputBounds(k, lo, hi);
+void InputBounds(const ControllerConfig& c, Solver* s, const Vec<2>& o = Vec<2>::Zero()) {
+  rti::quadrotor::SetInputLimits(s, c.thrust_min, c.thrust_max, c.max_attitude_ref, o);
 }
 
 // Bounds of the leader's position z and velocity, of the follower's displacement and
@@ -355,7 +347,7 @@ class LeaderCore final : public NmpcCore {
     yaw_ref_ = yaw_ref;
   }
 
-  void ShiftAttitudeBounds(const Vec<2>& o) override { ShiftedInputBounds(c_, o, &solver_); }
+  void ShiftAttitudeBounds(const Vec<2>& o) override { InputBounds(c_, &solver_, o); }
 
   void Start(const NmpcInput& in, const Vec3& u_guess) override {
     solver_.InitializeGuess(State(in), u_guess);
@@ -496,7 +488,7 @@ class FollowerCore final : public NmpcCore {
 
   void Engage(const Vec3& /*anchor*/, double yaw_ref) override { yaw_ref_ = yaw_ref; }
 
-  void ShiftAttitudeBounds(const Vec<2>& o) override { ShiftedInputBounds(c_, o, &solver_); }
+  void ShiftAttitudeBounds(const Vec<2>& o) override { InputBounds(c_, &solver_, o); }
 
   void Start(const NmpcInput& in, const Vec3& u_guess) override {
     ActiveNeighbours(in);
@@ -603,6 +595,7 @@ class FollowerCore final : public NmpcCore {
   void ShareTies(const NmpcInput& in) {
     if (!(c_.tie_disagreement > 0.0) || active_count_ < 2) {
       for (Vec3& e : disagreement_) e.setZero();
+      discounted_ = false;  // Aggregate wrote the references of the undiscounted weights
       return;
     }
     const double psi = in.own[5];
@@ -614,9 +607,13 @@ class FollowerCore final : public NmpcCore {
       place[j] -= desired_[j];
     }
     tie_ = rule_tie_;
-    DiscountDisagreeingTies(depth_.data(), active_.data(), place.data(), c_.tie_disagreement, nn_,
-                            tie_.data(), disagreement_.data());
-    TieReference();
+    // The references change only with the weights: written when a weight is discounted now or
+    // was last step (an unknown depth or one depth only: never).
+    const bool discounted =
+        DiscountDisagreeingTies(depth_.data(), active_.data(), place.data(), c_.tie_disagreement,
+                                nn_, tie_.data(), disagreement_.data());
+    if (discounted || discounted_) TieReference();
+    discounted_ = discounted;
   }
 
   // Neighbour j's prediction at stage k (relative position and velocity): constant velocity,
@@ -774,6 +771,7 @@ class FollowerCore final : public NmpcCore {
   std::array<int, kMaxNeighbours> depth_{};        // the neighbours' graph depths (-1: unknown)
   std::array<double, kMaxNeighbours> rule_tie_{};  // TieWeights of the active set
   std::array<double, kMaxNeighbours> tie_{};       // rule_tie_ after ShareTies (sum: active_count_)
+  bool discounted_ = false;                        // ShareTies discounted a weight at the last step
   // per-axis disagreement of each tie with the anchor ties (ShareTies; zero when off) [m]
   std::array<Vec3, kMaxNeighbours> disagreement_{};
   std::array<double, kMaxNeighbours> thrust_{};  // NeighbourState::thrust of the last Stage [N]

@@ -17,11 +17,14 @@
 namespace fnmpc::rti::quadrotor {
 
 /// Input bounds [T, roll_ref, pitch_ref] on every stage: thrust in [min, max] [N], the
-/// attitude references within +-max_attitude_ref [rad]. Hard (the QP keeps them exactly).
+/// attitude references within +-max_attitude_ref [rad], moved by `shift` [rad] (roll, pitch;
+/// a controller that sends u - shift keeps the reference it sends within the bound). Hard (the
+/// QP keeps them exactly).
 template <class Solver>
-void SetInputLimits(Solver* solver, double thrust_min, double thrust_max, double max_attitude_ref) {
-  const Vec3 lo(thrust_min, -max_attitude_ref, -max_attitude_ref);
-  const Vec3 hi(thrust_max, max_attitude_ref, max_attitude_ref);
+void SetInputLimits(Solver* solver, double thrust_min, double thrust_max, double max_attitude_ref,
+                    const Vec<2>& shift = Vec<2>::Zero()) {
+  const Vec3 lo(thrust_min, -max_attitude_ref + shift[0], -max_attitude_ref + shift[1]);
+  const Vec3 hi(thrust_max, max_attitude_ref + shift[0], max_attitude_ref + shift[1]);
   for (int k = 0; k < solver->horizon(); ++k) solver->SetInputBounds(k, lo, hi);
 }
 

@@ -81,9 +81,14 @@ TEST(TieWeightsTest, DisagreeingDeeperTieLosesItsShare) {
 TEST(TieWeightsTest, DisagreementLeavesAnchorsUnknownDepthsAndTheOffSwitchAlone) {
   // Each place 0.8 m from the others' mean when deeper; the two anchors agree
   const std::array<Vec3, 3> place{Vec3(0.0, 1.0, 0.0), Vec3(0.0, 1.0, 0.0), Vec3(0.0, 1.8, 0.0)};
+  // The return value says whether a weight was discounted (the controller rewrites its
+  // references only then): false exactly where the weights are left unchanged.
   const auto run = [&](std::array<int, 3> depth, std::array<bool, 3> active, double scale) {
     std::array<double, 3> w{1.0, 1.0, active[2] ? 1.0 : 0.0};
-    DiscountDisagreeingTies(depth.data(), active.data(), place.data(), scale, 3, w.data());
+    const std::array<double, 3> before = w;
+    const bool discounted =
+        DiscountDisagreeingTies(depth.data(), active.data(), place.data(), scale, 3, w.data());
+    EXPECT_EQ(discounted, w != before);
     return w;
   };
   // Ties of one depth only (a rear follower tied to two vehicles of the row ahead): no anchor
