@@ -32,6 +32,14 @@ class ControlStepScenario {
 
   /// One control step (ControlWithEstimates) and the plant's step under its command.
   formation::ControlOutput Step() {
+    return Step([](auto&& control) { return control(); });
+  }
+
+  /// The same, with the controller's call alone passed through `around` (a callable taking
+  /// the call and returning its ControlOutput): controller_bench times the control step
+  /// there, without the scenario's plant step and estimate synthesis.
+  template <class Around>
+  formation::ControlOutput Step(Around&& around) {
     namespace ft = formation::testing;
     estimation::VehicleEstimate e = plant_.Estimate(t_);
     e.position.z() -= ft::kGround;
@@ -40,7 +48,8 @@ class ControlStepScenario {
     nb_[0].head<3>() = p0_ - plant_.x.head<3>();
     nb_[1].setZero();
     nb_[1].head<3>() = p1_ - plant_.x.head<3>();
-    const formation::ControlOutput o = ctrl_.ControlWithEstimates(t_, e, nb_);
+    const formation::ControlOutput o =
+        around([&]() { return ctrl_.ControlWithEstimates(t_, e, nb_); });
     plant_.Step(o);
     // The push over the step: exactly its double integral (v' gains d, nothing else).
     plant_.x.head<3>() += 0.5 * ft::kTs * ft::kTs * d_;

@@ -46,10 +46,11 @@ struct WakeModelSettings {
 /// (the loss at another rotor speed differs; the disturbance observer absorbs it). Smooth
 /// versions of the simulator's hard limits: the rotor-plane step becomes a logistic onset,
 /// the cap a smooth minimum ((1 + (h_cap / h)^8)^(-1/8)), and the 3-half-width cut-off is
-/// dropped (the Gaussian is 0.2 % there). The follower's four rotors at the arm length a
-/// average the profile: approximated by a Gaussian of half width sqrt(r_half^2 + ln2 a^2) and
-/// amplitude r_half^2 / (r_half^2 + ln2 a^2) (the profile convolved with the rotor ring's
-/// spread, a^2 / 2 per axis). No allocation; no NaN for any finite input (r = 0, far away,
+/// dropped (the Gaussian is 0.2 % there; only what is below double precision, under 1e-16 of
+/// the jet's velocity, is exactly 0: a neighbour beside or below). The follower's four rotors at
+/// the arm length a average the profile: approximated by a Gaussian of half width sqrt(r_half^2 +
+/// ln2 a^2) and amplitude r_half^2 / (r_half^2 + ln2 a^2) (the profile convolved with the rotor
+/// ring's spread, a^2 / 2 per axis). No allocation; no NaN for any finite input (r = 0, far away,
 /// thrust 0).
 class WakeForceModel {
  public:
@@ -91,6 +92,11 @@ class WakeForceModel {
     const double eps = s_.onset_width;
     const double s = -r.z();
     const double z = s / eps;
+    const double rho2 = r.x() * r.x() + r.y() * r.y();
+    if (Negligible(z, rho2)) {
+      if (grad != nullptr) grad->setZero();
+      return 0.0;
+    }
     // exp(-|z|) is the logistic's exp(-z) for z >= 0 (the wake's side): one exponential there.
     const double e_abs = std::exp(-std::abs(z));
     const double onset = 1.0 / (1.0 + (z >= 0.0 ? e_abs : std::exp(-z)));  // logistic
@@ -98,12 +104,11 @@ class WakeForceModel {
     const double h = s_.wake_radius + s_.spreading_rate * dist;
     const double k = std::sqrt(std::max(thrust, 0.0) * inv_2_rho_a_) * k_per_vh_;
     const double q2 = (h_cap_ / h) * (h_cap_ / h);
-    const double q = q2 * q2 * q2 * q2;  // (h_cap / h)^8
-    const double cap = std::pow(1.0 + q, -0.125);
+    const double q = q2 * q2 * q2 * q2;                                 // (h_cap / h)^8
+    const double cap = 1.0 / std::sqrt(std::sqrt(std::sqrt(1.0 + q)));  // (1 + q)^(-1/8)
     const double uc = k / h * cap;
     const double he2 = h * h + ring_;
     const double amp = h * h / he2;
-    const double rho2 = r.x() * r.x() + r.y() * r.y();
     const double gauss = std::exp(-M_LN2 * rho2 / he2);
     const double u = onset * uc * amp * gauss;
     if (grad != nullptr) {
@@ -135,6 +140,21 @@ class WakeForceModel {
   }
 
  private:
+  /// Whether the wake at the onset coordinate z = s / onset_width and the squared axis
+  /// distance rho2 is below double precision: the logistic onset or the Gaussian factor under
+  /// exp(-kNegligibleExponent) = 1e-16, i.e. a velocity under 1e-16 times the jet's capped
+  /// centreline velocity (at most exit_velocity_factor v_h, a few m/s). Velocity then returns
+  /// exactly 0 without evaluating any transcendental function (a neighbour beside or below the
+  /// follower, most slots of a formation). Uses an upper bound of the Gaussian's width (the
+  /// softplus distance is at most eps (max(z, 0) + ln 2)), so it never drops more than that.
+  [[nodiscard]] bool Negligible(double z, double rho2) const {
+    if (z < -kNegligibleExponent) return true;
+    const double h_max =
+        s_.wake_radius + s_.spreading_rate * s_.onset_width * (std::max(z, 0.0) + M_LN2);
+    return M_LN2 * rho2 > kNegligibleExponent * (h_max * h_max + ring_);
+  }
+  static constexpr double kNegligibleExponent = 36.84;  // exp(-36.84) = 1.0e-16
+
   WakeModelSettings s_;
   double mass_;
   double inv_2_rho_a_ = 0.0, k_per_vh_ = 0.0, h_cap_ = 0.0, ring_ = 0.0;

@@ -13,12 +13,20 @@
 
 namespace fnmpc::rti {
 
+/// Throws std::out_of_range naming the setter and the stage (CheckStage's error path, out of
+/// line so that the check itself inlines into the setters the controller calls every step).
+[[noreturn, gnu::cold, gnu::noinline]] inline void ThrowStageOutOfRange(const char* setter, int k,
+                                                                        int first, int last,
+                                                                        int horizon) {
+  throw std::out_of_range(std::string("[RtiSolver] ") + setter + ": stage " + std::to_string(k) +
+                          " outside " + std::to_string(first) + ".." + std::to_string(last) +
+                          " (horizon " + std::to_string(horizon) + ")");
+}
+
 /// Throws std::out_of_range naming the setter when the stage k is outside first..last.
 inline void CheckStage(const char* setter, int k, int first, int last, int horizon) {
-  if (k < first || k > last) {
-    throw std::out_of_range(std::string("[RtiSolver] ") + setter + ": stage " + std::to_string(k) +
-                            " outside " + std::to_string(first) + ".." + std::to_string(last) +
-                            " (horizon " + std::to_string(horizon) + ")");
+  if (k < first || k > last) [[unlikely]] {
+    ThrowStageOutOfRange(setter, k, first, last, horizon);
   }
 }
 

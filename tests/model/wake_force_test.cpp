@@ -103,6 +103,46 @@ TEST(WakeForceModelTest, DecaysWithDistance) {
             wake.Acceleration(Vec3(0.0, 0.0, -1.0), kHover));
 }
 
+// Where the wake is below double precision (a neighbour beside at the formation spacing, or
+// below the follower) the model is exactly zero without evaluating it; just inside that
+// region it is already below 1e-15 m/s, so nothing of size is dropped.
+TEST(WakeForceModelTest, NegligibleWakeIsExactlyZeroAndWasBelowDoublePrecision) {
+  const WakeForceModel wake;
+  for (const Vec3& r :
+       {Vec3(4.0, 0.0, 0.0), Vec3(1.7, 3.8, -0.3), Vec3(0.0, 0.0, 1.9), Vec3(0.2, 0.0, 3.0)}) {
+    Vec3 grad(1.0, 1.0, 1.0);
+    EXPECT_EQ(wake.Velocity(r, 40.0, &grad), 0.0) << r.transpose();
+    EXPECT_EQ(grad, Vec3::Zero());
+    EXPECT_EQ(wake.Velocity(r, 40.0), 0.0);
+  }
+  // Walk outwards from the axis (and upwards from the rotor plane): the last value before
+  // the exact zero is below 1e-15 m/s, the first one is zero, and it stays zero.
+  for (const double depth : {0.0, 0.5, 2.0}) {
+    double last = 0.0;
+    int zeros = 0;
+    for (double x = 0.0; x < 10.0; x += 0.01) {
+      const double u = wake.Velocity(Vec3(x, 0.0, -depth), 40.0);
+      if (u == 0.0) {
+        ++zeros;
+      } else {
+        EXPECT_EQ(zeros, 0) << "non-zero again at x = " << x;
+        last = u;
+      }
+    }
+    EXPECT_GT(zeros, 0) << depth;
+    EXPECT_GT(last, 0.0);
+    EXPECT_LT(last, 1e-15) << depth;
+  }
+  double last = 0.0;
+  for (double up = 0.0; up < 5.0; up += 0.005) {
+    const double u = wake.Velocity(Vec3(0.0, 0.0, up), 40.0);
+    if (u == 0.0) break;
+    last = u;
+  }
+  EXPECT_GT(last, 0.0);
+  EXPECT_LT(last, 1e-15);
+}
+
 TEST(WakeForceModelTest, FiniteEverywhere) {
   const WakeForceModel wake;
   for (const Vec3& r : {Vec3(0.0, 0.0, 0.0), Vec3(0.0, 0.0, -1e-12), Vec3(0.0, 0.0, 1e6),
