@@ -49,7 +49,8 @@ void TieWeights(TieWeighting rule, const int* depth, const bool* active, int n, 
 /// to their count, as TieWeights leaves them. scale <= 0, fewer than two active ties, no
 /// deeper tie or an unknown depth: `w` unchanged. `disagreement` (optional) receives per tie
 /// the per-axis |place_j - anchor| of a discounted tie, zero for the others. Returns whether
-/// any weight was discounted. No allocation.
+/// a deeper tie was weighted (false exactly where `w` is left unchanged by the rules above; a
+/// deeper tie that agrees exactly keeps its weight and still returns true). No allocation.
 bool DiscountDisagreeingTies(const int* depth, const bool* active, const Vec3* place, double scale,
                              int n, double* w, Vec3* disagreement = nullptr);
 
