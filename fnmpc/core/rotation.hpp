@@ -65,6 +65,8 @@ Eigen::Matrix<S, 3, 3> RotationZ(const S& psi) {
 
 /// Wraps an angle to (-pi, pi].
 inline double WrapAngle(double a) {
+  // Most angles are already wrapped, and std::remainder returns them unchanged: skip its cost.
+  if (a > -M_PI && a <= M_PI) return a;
   a = std::remainder(a, 2.0 * M_PI);
   return a <= -M_PI ? a + 2.0 * M_PI : a;
 }

@@ -312,6 +312,7 @@ void VehicleEkf::ResetDisturbance(State* s) const {
 }
 
 void VehicleEkf::Initialize(double t, const Vec3& position, const Vec3& euler) {
+  ++revision_;
   if (!std::isfinite(t) || !position.allFinite() || !euler.allFinite()) {
     throw std::invalid_argument("[VehicleEkf] Initialize needs a finite time and pose, got t=" +
                                 std::to_string(t));
@@ -351,6 +352,7 @@ bool VehicleEkf::CommandFresh(double t, const State& s) const {
 
 EkfStatus VehicleEkf::SetCommand(double t, double thrust, double roll_ref, double pitch_ref,
                                  double yaw_ref, const Vec3& known_acceleration) {
+  ++revision_;
   if (!std::isfinite(t) || !std::isfinite(thrust) || !std::isfinite(roll_ref) ||
       !std::isfinite(pitch_ref) || !std::isfinite(yaw_ref) || !known_acceleration.allFinite()) {
     ++counters_.commands_rejected;
@@ -379,6 +381,7 @@ EkfStatus VehicleEkf::SetCommand(double t, double thrust, double roll_ref, doubl
 }
 
 EkfStatus VehicleEkf::Process(const Measurement& m) {
+  ++revision_;
   const int kind = static_cast<int>(m.kind);
   if (kind < 0 || kind >= kNumSensorKinds) return EkfStatus::kRejectedInvalid;
   const auto finish = [&](EkfStatus st) {

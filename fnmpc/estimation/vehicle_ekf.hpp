@@ -2,6 +2,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 
 #include "fnmpc/core/sensors.hpp"
 #include "fnmpc/core/types.hpp"
@@ -205,6 +206,9 @@ class VehicleEkf {
   [[nodiscard]] EkfCounters counters() const;
   /// Configuration in use.
   [[nodiscard]] const VehicleEkfConfig& config() const { return config_; }
+  /// Changes with every call that may change the filter (Initialize, SetCommand, Process):
+  /// two Estimate(t) calls at the same t and revision return the same estimate.
+  [[nodiscard]] std::uint64_t revision() const { return revision_; }
 
  private:
   struct Command {
@@ -264,6 +268,7 @@ class VehicleEkf {
   model::VehicleParams vehicle_;
   std::array<double, 7> gate_{};  // chi-square gate per measurement dimension 1..6
   State s_;
+  std::uint64_t revision_ = 0;
   ReplayBuffer<Event, State> buffer_;
   EkfCounters counters_;
   TimeJumpGuard time_jump_;

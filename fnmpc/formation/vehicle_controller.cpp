@@ -952,15 +952,29 @@ void VehicleController::Process(const Measurement& m) {
         }
       }
       if (filter == nullptr) break;
-      const estimation::VehicleEstimate e = ekf_.Estimate(m.stamp);
-      const Mat3 cov = e.covariance.block<3, 3>(6, 6);
-      if (filter->Process(m, e.euler, e.velocity, &cov) == estimation::EkfStatus::kAccepted &&
+      const OwnAtStamp& own = OwnAt(m.stamp);
+      if (filter->Process(m, own.euler, own.velocity, &own.euler_cov) ==
+              estimation::EkfStatus::kAccepted &&
           std::isfinite(m.stamp)) {
         presence->Accept(m.stamp, config_.safety.neighbour_reacquire_time);
       }
       break;
     }
   }
+}
+
+const VehicleController::OwnAtStamp& VehicleController::OwnAt(double stamp) {
+  OwnAtStamp& own = own_at_relative_;
+  // NaN never equals itself: a non-finite stamp is predicted anew (and rejected downstream).
+  if (own.stamp == stamp && own.revision == ekf_.revision()) return own;
+  const estimation::VehicleEstimate e = ekf_.Estimate(stamp);
+  own.stamp = stamp;
+  own.revision = ekf_.revision();
+  own.euler = e.euler;
+  own.velocity = e.velocity;
+  own.euler_cov = e.covariance.block<3, 3>(estimation::VehicleStateIndex::kEuler,
+                                           estimation::VehicleStateIndex::kEuler);
+  return own;
 }
 
 // The slot of another vehicle in view: its own, else a free one (never given, or its vehicle

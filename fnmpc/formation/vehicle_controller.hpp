@@ -247,6 +247,18 @@ class VehicleController {
 
   ControllerConfig config_;
   estimation::VehicleEkf ekf_;
+  /// The own attitude, velocity and attitude covariance a relative measurement is fused
+  /// with, predicted to its stamp: the sensor measures every vehicle in view at one stamp,
+  /// so one prediction serves them all while the filter is unchanged (its revision).
+  struct OwnAtStamp {
+    double stamp = kNaN;
+    std::uint64_t revision = 0;
+    Vec3 euler = Vec3::Zero();
+    Vec3 velocity = Vec3::Zero();
+    Mat3 euler_cov = Mat3::Zero();
+  };
+  OwnAtStamp own_at_relative_;
+  const OwnAtStamp& OwnAt(double stamp);
   std::vector<estimation::NeighbourEkf> neighbour_ekfs_;
   /// Presence of a tracked vehicle, from the relative measurements its filter accepted.
   struct Presence {
