@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <new>
@@ -215,6 +216,36 @@ void ExpectSameFilter(const VehicleEkf& a, const VehicleEkf& b, double t) {
   const EkfCounters ca = a.counters(), cb = b.counters();
   EXPECT_EQ(ca.by_status, cb.by_status);
   EXPECT_EQ(ca.mode_switches, cb.mode_switches);
+}
+
+TEST(VehicleEkfTest, RevisionChangesWhenTheFilterMayChangeAndOnlyThen) {
+  // Given a flying filter fed a stream, and the estimate at one stamp with its revision
+  const LissajousTrajectory lissajous;
+  const VehicleEkfConfig cfg = FlyingConfig();
+  std::mt19937 rng(5);
+  SensorStreamOptions opt;
+  opt.t1 = 2.0;
+  const SensorStream stream = GenerateVehicleStream(lissajous, cfg.sensors, opt, &rng);
+  VehicleEkf ekf(cfg, model::VehicleParams{});
+  std::uint64_t last = ekf.revision();
+  for (const Measurement& m : stream.measurements) {
+    ekf.Process(m);
+    // Then every Process changes it, rejected measurements too (counters may change)
+    ASSERT_NE(ekf.revision(), last);
+    last = ekf.revision();
+  }
+  const double t = opt.t1 + 0.01;
+  const VehicleEstimate before = ekf.Estimate(t);
+  // Estimate leaves it unchanged, and the same revision gives the same estimate
+  EXPECT_EQ(ekf.revision(), last);
+  EXPECT_EQ(ekf.Estimate(t).x, before.x);
+  EXPECT_EQ(ekf.Estimate(t).covariance, before.covariance);
+  // SetCommand and Initialize change it
+  ekf.SetCommand(t - 0.005, 14.0, 0.05, 0.0, 0.0);
+  EXPECT_NE(ekf.revision(), last);
+  last = ekf.revision();
+  ekf.Initialize(t, Vec3::Zero(), Vec3::Zero());
+  EXPECT_NE(ekf.revision(), last);
 }
 
 TEST(VehicleEkfTest, LateAndOutOfOrderDeliveryEqualsInOrder) {
