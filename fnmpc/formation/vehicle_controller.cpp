@@ -1037,10 +1037,14 @@ std::int64_t VehicleController::estimator_rejections() const {
 // (a follower's is dead-reckoned from its velocity, drift-free enough over one phase).
 Vec<2> VehicleController::HoldError() const { return hold_xy_ - estimates_.own.position.head<2>(); }
 
-double VehicleController::Height() const {
+double VehicleController::Height(double t) const {
   const auto& own = estimates_.own;
   if (config_.leader) return own.valid ? own.position.z() : kNaN;
-  if (std::isfinite(raw_z_)) return raw_z_;  // follower: the raw mocap height
+  // A follower: the raw motion-capture height while it is fresh. A stale one would freeze
+  // the height the take-off, landing and failsafe loops close on, and the failsafe's
+  // descent would speed up towards its falling reference (fault campaign run 8: mocap lost
+  // in the descent, touchdown at -0.8 m/s); after kMaxMocapGap the estimate's.
+  if (RawMocapFresh(t)) return raw_z_;
   return own.valid ? config_.ground_height + own.position.z() : kNaN;
 }
 
@@ -1059,7 +1063,7 @@ void VehicleController::Blend(double t, double* thrust, double* roll, double* pi
 // fallen vehicle cannot be kept in formation; it returns once airborne again for
 // neighbour_reacquire_time.
 void VehicleController::UpdateNeighbourPresence(double t) {
-  const double z = Height();
+  const double z = Height(t);
   const SafetyConfig& sc = config_.safety;
   if (std::isfinite(nmpc_start_)) {  // neighbours leaving the formation (formation_ties.hpp)
     std::array<TieView, kMaxNeighbours> views;
@@ -1361,7 +1365,7 @@ void VehicleController::EnterFailsafe(double t, RecoveryReason reason) {
 // height if the estimate is still valid.
 double VehicleController::FailsafeHeight(double t) const {
   if (RawMocapFresh(t)) return raw_z_;
-  return estimates_.own.valid && !VelocityInconsistent(t) ? Height() : kNaN;
+  return estimates_.own.valid && !VelocityInconsistent(t) ? Height(t) : kNaN;
 }
 
 // Touchdown: on the ground (height within the margin) and no longer moving down, so the
@@ -1466,7 +1470,7 @@ ControlOutput VehicleController::Step(double t) {
   for (const Presence& p : presence_) out.active_neighbours += p.active ? 1 : 0;
 
   double thrust = kNaN, roll = kNaN, pitch = kNaN;
-  const double z = Height();
+  const double z = Height(t);
   const double ground = config_.ground_height;
   const double h = config_.takeoff_height;
 

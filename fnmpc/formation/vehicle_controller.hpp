@@ -225,7 +225,7 @@ class VehicleController {
 
  private:
   ControlOutput Step(double t);
-  double Height() const;
+  double Height(double t) const;
   [[nodiscard]] Vec<2> HoldError() const;
   void Blend(double t, double* thrust, double* roll, double* pitch) const;
   bool EstimateUsable(double t) const;

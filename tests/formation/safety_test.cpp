@@ -487,6 +487,56 @@ TEST(SafetyTest, NeighbourDescendingOutOfTheFormationLeavesTheCostBeforeItLands)
   EXPECT_LT(sink, sink_off - 0.1);
 }
 
+TEST(SafetyTest, FollowerFailsafeDescentWithoutMotionCaptureKeepsItsRate) {
+  // Given a follower hovering under the NMPC with motion capture at 60 Hz (its height loops
+  // close on the raw motion-capture height while it is fresh)
+  ControllerConfig cfg = BaseConfig(false);
+  VehicleController c(cfg);
+  Plant plant;
+  const Vec3 p0(1.3, -0.8, 1.1);
+  double t = 0.0, next_mocap = 0.0;
+  bool mocap = true;
+  auto step = [&] {
+    for (; next_mocap <= t; next_mocap += 1.0 / 60.0) {
+      if (!mocap) continue;
+      Measurement m;
+      m.kind = SensorKind::kMocapPose;
+      m.vehicle = cfg.vehicle;
+      m.stamp = m.arrival = next_mocap;
+      m.position = plant.x.head<3>();
+      m.euler = plant.x.tail<3>();
+      c.Process(m);
+    }
+    estimation::VehicleEstimate e = plant.Estimate(t);
+    e.position.z() -= kGround;
+    std::vector<estimation::NeighbourStateVec> nb(1, estimation::NeighbourStateVec::Zero());
+    nb[0].head<3>() = p0 - plant.x.head<3>();
+    const ControlOutput o = c.ControlWithEstimates(t, e, nb);
+    plant.Step(o);
+    t += kTs;
+    return o;
+  };
+  while (t <= 8.0) step();
+  ASSERT_EQ(c.phase(), FlightPhase::kNmpc);
+  // When its failsafe descends and the motion capture is lost half-way down (fault campaign
+  // run 8: a mocap dropout in the failsafe's descent)
+  c.TriggerFailsafe(t);
+  const double t_fs = t;
+  const double fs = cfg.safety.recovery.failsafe_descent_speed;
+  while (c.phase() != FlightPhase::kLanded && t < t_fs + 20.0) {
+    if (t >= t_fs + cfg.safety.recovery.failsafe_hold_time + 0.5 * plant.x[2] / fs) mocap = false;
+    const ControlOutput o = step();
+    EXPECT_TRUE(std::isfinite(o.thrust));
+  }
+  // Then, on its estimated height once the last motion-capture height is kMaxMocapGap old,
+  // it touches down at about the failsafe rate (with that height held: at -0.88 m/s, the
+  // reference running away below a frozen height) and lands
+  ASSERT_FALSE(mocap);
+  EXPECT_EQ(c.phase(), FlightPhase::kLanded);
+  EXPECT_GT(plant.impact_vz, -(fs + 0.15));
+  EXPECT_NEAR(plant.x[2], kGround, 0.02);
+}
+
 TEST(SafetyTest, FailsafeHoldIgnoresMotionCaptureOutliers) {
   // Given a leader hovering under the NMPC with motion capture at 60 Hz
   ControllerConfig cfg = BaseConfig(true);
