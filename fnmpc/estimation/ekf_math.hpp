@@ -25,10 +25,17 @@ double Chi2Quantile(double p, int dof);
 /// euler = (phi, theta, psi) [rad].
 void RotationZyxPartials(const Vec3& euler, Mat3* R, std::array<Mat3, 3>* dR);
 
-/// Makes P exactly symmetric: P = (P + P') / 2.
+/// Makes P exactly symmetric: P = (P + P') / 2 (in place, each pair once; the diagonal,
+/// (a + a) / 2 = a, is left as it is).
 template <int N>
 void Symmetrize(Mat<N, N>* P) {
-  *P = 0.5 * (*P + P->transpose()).eval();
+  for (int j = 1; j < N; ++j) {
+    for (int i = 0; i < j; ++i) {
+      const double m = 0.5 * ((*P)(i, j) + (*P)(j, i));
+      (*P)(i, j) = m;
+      (*P)(j, i) = m;
+    }
+  }
 }
 
 /// Guard against forward time jumps of event stamps. An event more than `max_jump` past

@@ -67,6 +67,24 @@ TEST(KalmanUpdateTest, JosephFormKeepsCovarianceSymmetricPositiveDefinite) {
   EXPECT_EQ(llt.info(), Eigen::Success);
 }
 
+TEST(SymmetrizeTest, InPlaceGivesTheBitsOfTheHalfSum) {
+  // Given random non-symmetric matrices of the estimators' sizes, with entries of many scales
+  std::mt19937 rng(23);
+  std::normal_distribution<double> g;
+  std::uniform_int_distribution<int> scale(-12, 12);
+  for (int trial = 0; trial < 200; ++trial) {
+    Mat<18, 18> P;
+    for (int i = 0; i < 18; ++i)
+      for (int j = 0; j < 18; ++j) P(i, j) = g(rng) * std::ldexp(1.0, scale(rng));
+    const Mat<18, 18> half_sum = (0.5 * (P + P.transpose())).eval();
+    // When symmetrized in place
+    Symmetrize<18>(&P);
+    // Then every entry has the bits of (P + P') / 2, the diagonal included
+    for (int i = 0; i < 18; ++i)
+      for (int j = 0; j < 18; ++j) ASSERT_EQ(P(i, j), half_sum(i, j)) << i << ", " << j;
+  }
+}
+
 TEST(KalmanUpdateTest, GateRejectsWithoutTouchingState) {
   // Given a unit prior and a 10-sigma innovation
   Vec<1> x(0.0);
