@@ -63,6 +63,16 @@ struct Plant {
       }
     }
   }
+  /// An exact motion-capture sample of the plant for `vehicle`, stamped and arriving at t.
+  [[nodiscard]] Measurement Mocap(int vehicle, double t) const {
+    Measurement m;
+    m.kind = SensorKind::kMocapPose;
+    m.vehicle = vehicle;
+    m.stamp = m.arrival = t;
+    m.position = x.head<3>();
+    m.euler = x.tail<3>();
+    return m;
+  }
   [[nodiscard]] estimation::VehicleEstimate Estimate(double t) const {
     estimation::VehicleEstimate e;
     e.valid = true;

@@ -498,14 +498,7 @@ TEST(SafetyTest, FollowerFailsafeDescentWithoutMotionCaptureKeepsItsRate) {
   bool mocap = true;
   auto step = [&] {
     for (; next_mocap <= t; next_mocap += 1.0 / 60.0) {
-      if (!mocap) continue;
-      Measurement m;
-      m.kind = SensorKind::kMocapPose;
-      m.vehicle = cfg.vehicle;
-      m.stamp = m.arrival = next_mocap;
-      m.position = plant.x.head<3>();
-      m.euler = plant.x.tail<3>();
-      c.Process(m);
+      if (mocap) c.Process(plant.Mocap(cfg.vehicle, next_mocap));
     }
     estimation::VehicleEstimate e = plant.Estimate(t);
     e.position.z() -= kGround;
@@ -547,12 +540,7 @@ TEST(SafetyTest, FailsafeHoldIgnoresMotionCaptureOutliers) {
   int sample = 0;
   auto feed_mocap = [&](double until, bool outliers) {
     for (; next_mocap <= until; next_mocap += 1.0 / 60.0, ++sample) {
-      Measurement m;
-      m.kind = SensorKind::kMocapPose;
-      m.vehicle = cfg.vehicle;
-      m.stamp = m.arrival = next_mocap;
-      m.position = plant.x.head<3>();
-      m.euler = plant.x.tail<3>();
+      Measurement m = plant.Mocap(cfg.vehicle, next_mocap);
       // every fifth sample 0.8 m off (the fault campaign's outlier sizes reach 1 m)
       if (outliers && sample % 5 == 0) m.position.z() += 0.8;
       c.Process(m);
