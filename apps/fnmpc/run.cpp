@@ -164,8 +164,9 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
       ->check(CLI::Range(1, 256));
   sub->add_option("--threads", a->threads,
                   "threads per run for its vehicles' estimators and controllers (default: the "
-                  "CPUs divided by --jobs); the run folder is the same whatever the count, "
-                  "timing columns aside")
+                  "CPUs divided by --jobs; from 2 on, one more feeds the measurements while the "
+                  "world steps); the run folder is the same whatever the count, timing columns "
+                  "aside")
       ->check(CLI::Range(1, 256));
   sub->add_option("--seed", a->seed, "first noise seed (default: the scenario's)")
       ->check(CLI::Range(0LL, 1LL << 53));

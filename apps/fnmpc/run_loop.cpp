@@ -6,10 +6,12 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string_view>
 
 #include "apps/fnmpc/fault_injector.hpp"
+#include "apps/fnmpc/measurement_feeder.hpp"
 #include "apps/fnmpc/output_files.hpp"
 #include "apps/fnmpc/plan_link.hpp"
 #include "apps/fnmpc/run_log.hpp"
@@ -105,6 +107,14 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
   // The vehicles' estimators and controllers of one control step run on these threads; each
   // task touches only its own vehicle's controller, inbox and output.
   WorkerPool pool(std::max(1, std::min(options.threads, nv)));
+  // With more than one thread, a thread of its own feeds the measurements to the controllers
+  // while the world takes its next steps (in delivery order, so each controller gets the same
+  // calls as from the inboxes); at a control step the ones it has not reached go to the
+  // inboxes, which the vehicles' tasks empty in parallel.
+  std::optional<MeasurementFeeder> feeder;
+  if (pool.threads() > 1) {
+    feeder.emplace([&](const Measurement& x) { ctrl[x.vehicle]->Process(x); });
+  }
   std::vector<formation::ControlOutput> outs(static_cast<std::size_t>(nv));
   std::vector<char> killed_now(static_cast<std::size_t>(nv), 0);
 
@@ -152,7 +162,11 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
       if (!injector.Filter(&m)) continue;  // in delivery order: its random stream is shared
       // Only the carrying vehicle's controller uses a measurement.
       if (m.vehicle >= 0 && m.vehicle < nv && ctrl[m.vehicle] && !killed[m.vehicle]) {
-        inbox[m.vehicle].push_back(m);
+        if (feeder) {
+          feeder->Push(m);
+        } else {
+          inbox[m.vehicle].push_back(m);
+        }
       }
     }
     if (step % every == 0) {
@@ -180,6 +194,7 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
       } else if (ctrl[sc.leader] && ctrl[sc.leader]->anchor().allFinite()) {
         leader_ref = ctrl[sc.leader]->anchor() + ref_off;
       }
+      if (feeder) feeder->TakeRest([&](const Measurement& x) { inbox[x.vehicle].push_back(x); });
       // Cooperative mode: the plans that have arrived, before the control step.
       if (link) {
         link->Deliver(t, [&](int r, const formation::PlanMessage& msg) {
@@ -211,8 +226,6 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
       for (int i = 0; i < nv; ++i) {
         const auto& v = sc.vehicles[i];
         VehicleRecord& L = rec.vehicles[i];
-        const bool window = t >= sc.trajectory_start && t < config::LandingTime(sc, i);
-        const bool steady = window && settled;
         formation::ControlOutput out;
         if (killed_now[i]) {
           if (options.progress) {
@@ -299,6 +312,16 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
           out.phase = FlightPhase::kNmpc;
           out.time = t;
         }
+        outs[i] = out;
+      }
+      // In parallel, per vehicle: its flight envelope, formation errors and CSV row (each
+      // task writes only its vehicle's record and CSV file).
+      pool.ForEach(nv, [&](int i) {
+        const auto& v = sc.vehicles[i];
+        VehicleRecord& L = rec.vehicles[i];
+        const bool window = t >= sc.trajectory_start && t < config::LandingTime(sc, i);
+        const bool steady = window && settled;
+        const formation::ControlOutput& out = outs[i];
         const sim::TrueState& x = truth[i];
         // Flight envelope (from the truth): altitude above the ground and horizontal distance
         // from the start; the first excursion is kept.
@@ -367,7 +390,7 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
           row.estimated_force = ctrl[i]->config().params.mass * (e.disturbance + out.wake);
         }
         csv[i].Write(row);
-      }
+      });
       if (options.progress && t >= next_progress) {
         std::fprintf(stderr, "\r%s t = %5.1f / %.1f s", options.label.c_str(), t, duration);
         std::fflush(stderr);
@@ -385,6 +408,7 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
   }
   // Measurements delivered after the last control step still count in the estimators'
   // rejection totals.
+  if (feeder) feeder->TakeRest([&](const Measurement& x) { inbox[x.vehicle].push_back(x); });
   pool.ForEach(nv, feed);
   if (options.progress)
     std::fprintf(stderr, "\r%s t = %5.1f / %.1f s\n", options.label.c_str(), duration, duration);

@@ -148,5 +148,42 @@ TEST(RunJobsTest, ThreadsPerRunWriteTheSameFolderAsOne) {
   fs::remove_all(base);
 }
 
+TEST(RunJobsTest, ThreadsPerRunWriteTheSameFolderAsOneWithPlansAndSensorFaults) {
+  // Given the triangle shortened to 25 s in cooperative mode (plans over the link, delivered
+  // at the control steps while a thread of its own feeds the measurements), with outliers
+  // and a window without motion capture for one follower,
+  config::ScenarioConfig sc =
+      config::LoadScenarioFile(std::string(FNMPC_SOURCE_DIR) + "/config/scenarios/triangle.yaml");
+  sc = Shortened(sc, 25.0);
+  sc.compensation = formation::Compensation::kCooperative;
+  sc.faults.outlier_rate = 0.01;
+  sc.faults.outlier_size = 0.5;
+  config::SensorDropoutWindow window;
+  window.vehicle = sc.vehicles[1].name;
+  window.index = 1;
+  window.sensor = SensorKind::kMocapPose;
+  window.from = 12.0;
+  window.to = 13.5;
+  sc.faults.sensor_dropouts.push_back(window);
+  const std::string base = testing::TempDir() + "/fnmpc-threads-coop-" + std::to_string(getpid());
+  fs::remove_all(base);
+  RunFolderOptions o;
+  o.seed = 7;
+  // when flown with one thread and with two,
+  o.threads = 1;
+  RunFolder(sc, o, base + "/one");
+  o.threads = 2;
+  RunFolder(sc, o, base + "/two");
+  // then the summaries and every CSV agree, timings aside,
+  const json one = Summary(base + "/one/summary.json");
+  EXPECT_EQ(one, Summary(base + "/two/summary.json"));
+  EXPECT_EQ(CompareCsvs(base + "/one", base + "/two"), 3);
+  // and the plans and the faults were there to be ordered.
+  const json run = Summary(base + "/one/run-01/summary.json");
+  EXPECT_GT(run["link"]["delivered"].get<int>(), 0) << run.dump();
+  EXPECT_GT(run["faults"]["outliers"]["corrupted"].get<int>(), 0) << run.dump();
+  fs::remove_all(base);
+}
+
 }  // namespace
 }  // namespace fnmpc::app
