@@ -7,8 +7,8 @@
 namespace fnmpc::app {
 namespace {
 
-// A waiting thread spins this many times before it sleeps (the feeding thread) or yields (the
-// producer): the world's next step, and with it the next measurement, is tens of
+// A waiting thread spins this many times before it sleeps (the feeding thread) or yields
+// (TakeRest): the world's next step, and with it the next measurement, is tens of
 // microseconds away.
 constexpr int kSpins = 2000;
 
@@ -36,12 +36,11 @@ MeasurementFeeder::~MeasurementFeeder() {
 
 void MeasurementFeeder::Push(const Measurement& m) {
   const std::uint32_t h = head_.load(std::memory_order_relaxed);
-  for (int spin = 0; h - done_.load(std::memory_order_acquire) > mask_; ++spin) {
-    if (spin < kSpins) {
-      CpuRelax();
-    } else {
-      std::this_thread::yield();
-    }
+  // Full, or measurements already aside (they come after every one in the ring): aside,
+  // fed by the caller after TakeRest rather than by a thread the producer would wait for.
+  if (!aside_.empty() || h - done_.load(std::memory_order_acquire) > mask_) {
+    aside_.push_back(m);
+    return;
   }
   ring_[h & mask_] = m;
   head_.store(h + 1, std::memory_order_release);

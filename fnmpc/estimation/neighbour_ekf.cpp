@@ -487,11 +487,8 @@ EkfStatus NeighbourEkf::UpdateSpherical(const Event& e, const Mode& prior, Mode*
   return r->status;
 }
 
-EkfStatus NeighbourEkf::UpdateCartesian(const Event& e, const Mode& prior, Mode* m,
-                                        UpdateResult* r) const {
-  Vec<4> z;
-  Mat<4, 4> R;
-  RelativeToCartesian(e.m.relative, e.own_euler, e.own_euler_cov, config_.sensors.relative, &z, &R);
+EkfStatus NeighbourEkf::UpdateCartesian(const Vec<4>& z, const Mat<4, 4>& R, const Mode& prior,
+                                        Mode* m, UpdateResult* r) const {
   Vec<4> y;
   y.head<3>() = z.head<3>() - prior.x.segment<3>(Idx::kRelPos);
   y(3) = WrapAngle(z(3) - prior.x(Idx::kYaw));
@@ -510,10 +507,16 @@ EkfStatus NeighbourEkf::Update(const Event& e, State* s) const {
   std::array<UpdateResult, kModes> r{};
   const int first = multiple_model() ? 0 : kManoeuvre;
   bool any_accepted = false;
+  const bool cartesian = config_.relative_update == RelativeUpdate::kCartesian;
+  Vec<4> z;
+  Mat<4, 4> R;
+  if (cartesian) {
+    RelativeToCartesian(e.m.relative, e.own_euler, e.own_euler_cov, config_.sensors.relative, &z,
+                        &R);
+  }
   for (int m = first; m < kModes; ++m) {
-    const EkfStatus st = config_.relative_update == RelativeUpdate::kCartesian
-                             ? UpdateCartesian(e, s->mode[m], &updated[m], &r[m])
-                             : UpdateSpherical(e, s->mode[m], &updated[m], &r[m]);
+    const EkfStatus st = cartesian ? UpdateCartesian(z, R, s->mode[m], &updated[m], &r[m])
+                                   : UpdateSpherical(e, s->mode[m], &updated[m], &r[m]);
     if (st == EkfStatus::kNumericalError) return st;
     any_accepted = any_accepted || st == EkfStatus::kAccepted;
   }

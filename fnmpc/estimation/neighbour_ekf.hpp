@@ -201,7 +201,10 @@ class NeighbourEkf {
   void InitFromMeasurement(const Event& e, State* s) const;
   [[nodiscard]] Mat<4, 4> NoiseCovariance(const Event& e, const NeighbourStateVec& x) const;
   EkfStatus UpdateSpherical(const Event& e, const Mode& prior, Mode* m, UpdateResult* r) const;
-  EkfStatus UpdateCartesian(const Event& e, const Mode& prior, Mode* m, UpdateResult* r) const;
+  /// z, R: the event's measurement as a relative position and yaw (RelativeToCartesian),
+  /// the same for every mode.
+  EkfStatus UpdateCartesian(const Vec<4>& z, const Mat<4, 4>& R, const Mode& prior, Mode* m,
+                            UpdateResult* r) const;
   // The update of every mode, the mode probabilities from their likelihoods.
   EkfStatus Update(const Event& e, State* s) const;
   // The process noise of one mode over h [s].
