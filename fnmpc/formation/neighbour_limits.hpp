@@ -4,7 +4,7 @@
 namespace fnmpc::formation {
 
 /// Most formation neighbours of one follower. The reduced OCP's size does not depend on the
-/// count (the neighbours enter as their mean, see FollowerCore in vehicle_controller.cpp);
+/// count (the neighbours enter as their mean, see FollowerCore in nmpc_core.cpp);
 /// the bound only sizes the controller's fixed per-step arrays (no allocation in flight).
 inline constexpr int kMaxNeighbours = 8;
 

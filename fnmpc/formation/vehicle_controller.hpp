@@ -141,7 +141,7 @@ struct ControllerEstimates {
   std::vector<estimation::NeighbourStateCov> neighbour_covariances, other_covariances;
 };
 
-class NmpcCore;  // leader or reduced follower solver (vehicle_controller.cpp)
+class NmpcCore;  // leader or reduced follower solver (nmpc_core.hpp)
 
 /// The controller of one vehicle. Feed every measurement with Process() as it arrives and
 /// call Control(t) every Ts; Control never returns a non-finite command.

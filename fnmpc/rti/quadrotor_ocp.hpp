@@ -9,7 +9,7 @@
 
 /// How the quadrotor OCPs of fnmpc/ocp/problems.hpp are set up on an RtiSolver: weight rows,
 /// bounded states, input and speed bounds, the reduced follower's displacement bounds. One
-/// module for both users, the formation controllers (fnmpc/formation/vehicle_controller.cpp,
+/// module for both users, the formation controllers (fnmpc/formation/nmpc_core.cpp,
 /// whose problems add obstacle and input-rate rows after these) and the fixed benchmark
 /// problems (benchmark_ocps.cpp, shared/benchmark/ocp-spec.md: the defaults of
 /// ocp::NmpcWeights and of formation::ControllerSettings' bounds). Templates on the solver:
