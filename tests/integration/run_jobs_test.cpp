@@ -115,6 +115,25 @@ int CompareCsvs(const std::string& a, const std::string& b) {
   return csvs;
 }
 
+// Flies one run of `sc` with one thread and with `threads`, expects the same summaries and
+// CSVs (timings aside) and returns the run's summary.
+json RunSummaryIfThreadsAgree(const config::ScenarioConfig& sc, int seed, int threads,
+                              const std::string& name) {
+  const std::string base = testing::TempDir() + "/fnmpc-" + name + "-" + std::to_string(getpid());
+  fs::remove_all(base);
+  RunFolderOptions o;
+  o.seed = seed;
+  o.threads = 1;
+  RunFolder(sc, o, base + "/one");
+  o.threads = threads;
+  RunFolder(sc, o, base + "/many");
+  EXPECT_EQ(Summary(base + "/one/summary.json"), Summary(base + "/many/summary.json"));
+  EXPECT_EQ(CompareCsvs(base + "/one", base + "/many"), static_cast<int>(sc.vehicles.size()));
+  const json run = Summary(base + "/one/run-01/summary.json");
+  fs::remove_all(base);
+  return run;
+}
+
 TEST(RunJobsTest, ThreadsPerRunWriteTheSameFolderAsOne) {
   // Given the 10-vehicle wedge shortened to 25 s with 4 tracking slots per controller (the
   // slots change hands) and one follower's controller killed at 18 s,
@@ -125,27 +144,16 @@ TEST(RunJobsTest, ThreadsPerRunWriteTheSameFolderAsOne) {
   sc.faults.kill_controller.vehicle = sc.vehicles[4].name;
   sc.faults.kill_controller.index = 4;
   sc.faults.kill_controller.time = 18.0;
-  const std::string base = testing::TempDir() + "/fnmpc-threads-" + std::to_string(getpid());
-  fs::remove_all(base);
-  RunFolderOptions o;
-  o.seed = 3;
-  // when flown with one thread and with three,
-  o.threads = 1;
-  RunFolder(sc, o, base + "/one");
-  o.threads = 3;
-  RunFolder(sc, o, base + "/three");
-  // then the summaries and every CSV agree, timings aside,
-  const json one = Summary(base + "/one/summary.json");
-  EXPECT_EQ(one, Summary(base + "/three/summary.json"));
-  EXPECT_EQ(CompareCsvs(base + "/one", base + "/three"), 10);
+  // when flown with one thread and with three, then the summaries and every CSV agree,
+  // timings aside,
+  const json run = RunSummaryIfThreadsAgree(sc, 3, 3, "threads");
   // and the run did fly (the killed controller's vehicle was landed by its autopilot).
-  const json run = Summary(base + "/one/run-01/summary.json");
   EXPECT_TRUE(run.contains("faults")) << run.dump();
   EXPECT_GT(run["vehicles"][sc.vehicles[9].name]["depth"].get<int>(), 1);
   EXPECT_EQ(run["vehicles"][sc.vehicles[sc.leader].name]["depth"].get<int>(), 0);
+  RunFolderOptions o;
   o.threads = 0;
-  EXPECT_THROW(RunFolder(sc, o, base + "/zero"), std::invalid_argument);
-  fs::remove_all(base);
+  EXPECT_THROW(RunFolder(sc, o, testing::TempDir() + "/fnmpc-zero"), std::invalid_argument);
 }
 
 TEST(RunJobsTest, ThreadsPerRunWriteTheSameFolderAsOneWithPlansAndSensorFaults) {
@@ -165,24 +173,12 @@ TEST(RunJobsTest, ThreadsPerRunWriteTheSameFolderAsOneWithPlansAndSensorFaults) 
   window.from = 12.0;
   window.to = 13.5;
   sc.faults.sensor_dropouts.push_back(window);
-  const std::string base = testing::TempDir() + "/fnmpc-threads-coop-" + std::to_string(getpid());
-  fs::remove_all(base);
-  RunFolderOptions o;
-  o.seed = 7;
-  // when flown with one thread and with two,
-  o.threads = 1;
-  RunFolder(sc, o, base + "/one");
-  o.threads = 2;
-  RunFolder(sc, o, base + "/two");
-  // then the summaries and every CSV agree, timings aside,
-  const json one = Summary(base + "/one/summary.json");
-  EXPECT_EQ(one, Summary(base + "/two/summary.json"));
-  EXPECT_EQ(CompareCsvs(base + "/one", base + "/two"), 3);
+  // when flown with one thread and with two, then the summaries and every CSV agree,
+  // timings aside,
+  const json run = RunSummaryIfThreadsAgree(sc, 7, 2, "threads-coop");
   // and the plans and the faults were there to be ordered.
-  const json run = Summary(base + "/one/run-01/summary.json");
   EXPECT_GT(run["link"]["delivered"].get<int>(), 0) << run.dump();
   EXPECT_GT(run["faults"]["outliers"]["corrupted"].get<int>(), 0) << run.dump();
-  fs::remove_all(base);
 }
 
 }  // namespace
