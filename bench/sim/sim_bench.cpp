@@ -1,8 +1,16 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // Real-time factor of the MuJoCo world: counter "rtf" = simulated seconds per wall second.
+// BM_MujocoLayout: MuJoCo alone, the world's MJCF of N vehicles as one model against N models
+// of one vehicle each (the layout that would let the vehicles be stepped in parallel).
 #include <benchmark/benchmark.h>
+#include <mujoco/mujoco.h>
 
+#include <array>
+#include <cstring>
+#include <memory>
+#include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "fnmpc/config/vehicle_yaml.hpp"
 #include "fnmpc/sim/world.hpp"
@@ -89,6 +97,92 @@ BENCHMARK(BM_World)
     ->Args({3, kGroundLean})
     ->Args({1, kHoverNoSensors})
     ->Args({10, kHoverNoSensors})
+    ->Unit(benchmark::kMillisecond);
+
+enum Layout : int { kOneModel = 0, kModelPerVehicle = 1 };
+
+/// A MuJoCo model compiled from MJCF text and its data.
+struct MujocoPair {
+  mjModel* m = nullptr;
+  mjData* d = nullptr;
+  explicit MujocoPair(const std::string& xml) {
+    auto vfs = std::make_unique<mjVFS>();
+    mj_defaultVFS(vfs.get());
+    const char* name = "bench.xml";
+    if (mj_makeEmptyFileVFS(vfs.get(), name, static_cast<int>(xml.size())) != 0) {
+      throw std::runtime_error("cannot create the in-memory MJCF file");
+    }
+    std::memcpy(vfs->filedata[mj_findFileVFS(vfs.get(), name)], xml.data(), xml.size());
+    std::array<char, 1000> err{};
+    m = mj_loadXML(name, vfs.get(), err.data(), static_cast<int>(err.size()));
+    mj_deleteVFS(vfs.get());
+    if (m == nullptr) throw std::runtime_error(err.data());
+    d = mj_makeData(m);
+  }
+  MujocoPair(const MujocoPair&) = delete;
+  MujocoPair& operator=(const MujocoPair&) = delete;
+  ~MujocoPair() {
+    mj_deleteData(d);
+    mj_deleteModel(m);
+  }
+};
+
+/// The world's MJCF (World::BuildMjcf) for the vehicles of `c`, as one model or one per vehicle.
+std::vector<std::unique_ptr<MujocoPair>> BuildLayout(const WorldConfig& c, Layout layout) {
+  std::vector<std::unique_ptr<MujocoPair>> models;
+  if (layout == kOneModel) {
+    models.push_back(std::make_unique<MujocoPair>(World::BuildMjcf(c)));
+    return models;
+  }
+  for (const auto& v : c.vehicles) {
+    WorldConfig one = c;
+    one.vehicles = {v};
+    models.push_back(std::make_unique<MujocoPair>(World::BuildMjcf(one)));
+  }
+  return models;
+}
+
+/// mj_step of every model, the vehicles held up by a vertical force m g in the air (args:
+/// vehicles, layout, on the ground 0/1). Counter us_per_step: one physics step of all vehicles.
+void BM_MujocoLayoutStep(benchmark::State& state) {
+  const bool ground = state.range(2) != 0;
+  const WorldConfig c =
+      Make(static_cast<int>(state.range(0)), ground ? kGroundLean : kHoverLean);
+  const auto models = BuildLayout(c, static_cast<Layout>(state.range(1)));
+  const double weight = c.vehicles[0].params.mass * c.gravity;
+  constexpr int kSteps = 1000;
+  for (auto _ : state) {
+    for (int k = 0; k < kSteps; ++k) {
+      for (const auto& p : models) {
+        for (int j = 0; j < p->m->njnt; ++j) {
+          p->d->qfrc_applied[p->m->jnt_dofadr[j] + 2] = ground ? 0.0 : weight;
+        }
+        mj_step(p->m, p->d);
+      }
+    }
+    state.PauseTiming();
+    for (const auto& p : models) mj_resetData(p->m, p->d);  // back to the start
+    state.ResumeTiming();
+  }
+  state.counters["us_per_step"] =
+      benchmark::Counter(static_cast<double>(state.iterations() * kSteps),
+                         benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_MujocoLayoutStep)
+    ->ArgNames({"vehicles", "per_vehicle", "ground"})
+    ->ArgsProduct({{25, 100}, {kOneModel, kModelPerVehicle}, {0, 1}})
+    ->Unit(benchmark::kMillisecond);
+
+/// Compiling the MJCF and making the data (args: vehicles, layout).
+void BM_MujocoLayoutBuild(benchmark::State& state) {
+  const WorldConfig c = Make(static_cast<int>(state.range(0)), kHoverLean);
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(BuildLayout(c, static_cast<Layout>(state.range(1))));
+  }
+}
+BENCHMARK(BM_MujocoLayoutBuild)
+    ->ArgNames({"vehicles", "per_vehicle"})
+    ->ArgsProduct({{25, 100}, {kOneModel, kModelPerVehicle}})
     ->Unit(benchmark::kMillisecond);
 
 }  // namespace
