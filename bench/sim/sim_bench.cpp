@@ -146,8 +146,7 @@ std::vector<std::unique_ptr<MujocoPair>> BuildLayout(const WorldConfig& c, Layou
 /// vehicles, layout, on the ground 0/1). Counter us_per_step: one physics step of all vehicles.
 void BM_MujocoLayoutStep(benchmark::State& state) {
   const bool ground = state.range(2) != 0;
-  const WorldConfig c =
-      Make(static_cast<int>(state.range(0)), ground ? kGroundLean : kHoverLean);
+  const WorldConfig c = Make(static_cast<int>(state.range(0)), ground ? kGroundLean : kHoverLean);
   const auto models = BuildLayout(c, static_cast<Layout>(state.range(1)));
   const double weight = c.vehicles[0].params.mass * c.gravity;
   constexpr int kSteps = 1000;
