@@ -117,6 +117,8 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
   }
   std::vector<formation::ControlOutput> outs(static_cast<std::size_t>(nv));
   std::vector<char> killed_now(static_cast<std::size_t>(nv), 0);
+  std::vector<sim::TrueState> truth(static_cast<std::size_t>(nv));  // at each control step
+  std::vector<Vec3> positions(static_cast<std::size_t>(nv));
 
   for (int step = 0; step <= steps; ++step) {
     if (options.stop != nullptr && *options.stop != 0) {
@@ -170,8 +172,6 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
       }
     }
     if (step % every == 0) {
-      std::vector<sim::TrueState> truth(nv);
-      std::vector<Vec3> positions(nv);
       for (int i = 0; i < nv; ++i) {
         truth[i] = world.GetTrueState(i);
         positions[i] = truth[i].position;

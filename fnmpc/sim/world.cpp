@@ -175,6 +175,9 @@ void WorldConfig::Validate() const {
   Require(relative_index_min_vehicles >= 0,
           "[World] relative_index_min_vehicles must be >= 0, got " +
               std::to_string(relative_index_min_vehicles));
+  Require(contacts_per_vehicle >= 1 && contacts_per_vehicle <= 1000,
+          "[World] contacts_per_vehicle must be in [1, 1000], got " +
+              std::to_string(contacts_per_vehicle));
   const BatterySettings& b = battery;
   Require(b.full_voltage > b.empty_voltage && b.empty_voltage > 0.0,
           "[World] battery needs full_voltage > empty_voltage > 0, got " +
@@ -247,10 +250,6 @@ void WorldConfig::Validate() const {
   }
 }
 
-/// Contact buffer per vehicle: 4 feet and the hub on the ground, plus room for as many
-/// vehicle-vehicle contacts (MuJoCo's nconmax).
-constexpr std::size_t kContactsPerVehicle = 10;
-
 std::string World::BuildMjcf(const WorldConfig& c) {
   std::ostringstream x;
   x << "<mujoco model=\"fnmpc_world\">\n"
@@ -260,8 +259,8 @@ std::string World::BuildMjcf(const WorldConfig& c) {
     // MuJoCo 2.2's default contact buffer (100) holds 25 vehicles on their four feet: the rest
     // fell through the ground. Room for feet and hub of every vehicle, vehicle-vehicle
     // contacts besides; pyramidal friction cones use 4 constraint rows per contact (condim 3).
-    << "  <size nconmax=\"" << kContactsPerVehicle * (c.vehicles.size() + 4) << "\" njmax=\""
-    << 4 * kContactsPerVehicle * (c.vehicles.size() + 4) << "\"/>\n"
+    << "  <size nconmax=\"" << c.contacts_per_vehicle * (c.vehicles.size() + 4) << "\" njmax=\""
+    << 4 * c.contacts_per_vehicle * (c.vehicles.size() + 4) << "\"/>\n"
     << "  <default><geom friction=\"1 0.005 0.0001\" rgba=\"0.6 0.6 0.6 1\"/></default>\n"
     << "  <worldbody>\n";
   if (c.ground) {
@@ -769,8 +768,20 @@ struct World::Impl {
   /// MuJoCo's instability warnings (mj_checkPos / mj_checkVel / mj_checkAcc: a NaN, Inf or
   /// value above mjOption::max... in qpos, qvel or qacc). MuJoCo answers them by resetting the
   /// data to the initial state and goes on, which would teleport every vehicle back to its
-  /// start; the counters are never cleared here, so any count means an instability.
+  /// start; the counters are never cleared here, so any count means an instability. A full
+  /// contact or constraint buffer (WorldConfig::contacts_per_vehicle) is reported first.
   void CheckStability(double t) const {
+    const int full_contacts = d->warning[mjWARN_CONTACTFULL].number;
+    const int full_rows = d->warning[mjWARN_CNSTRFULL].number;
+    if (full_contacts > 0 || full_rows > 0) {
+      std::ostringstream os;
+      os << std::setprecision(6) << "[World] MuJoCo's "
+         << (full_contacts > 0 ? "contact" : "constraint") << " buffer is full at t = " << t
+         << " s (room for " << m->nconmax << " contacts and " << m->njmax
+         << " constraint rows: WorldConfig::contacts_per_vehicle = " << config.contacts_per_vehicle
+         << " for " << vehicles.size() << " vehicles); the contacts beyond it would be dropped";
+      throw SimulationError(os.str());
+    }
     int count = 0;
     for (const int w : {mjWARN_BADQPOS, mjWARN_BADQVEL, mjWARN_BADQACC}) {
       count += d->warning[w].number;

@@ -235,6 +235,13 @@ struct WorldConfig {
   /// of testing every pair; the measurements are the same (tests/sim/cell_list_test.cpp).
   /// Every pair is tested when some enabled relative sensor has an infinite `max_range`.
   int relative_index_min_vehicles = 32;
+  /// Room in MuJoCo's contact buffer per vehicle, plus as much for four more vehicles
+  /// (`nconmax` = contacts_per_vehicle (N + 4); each contact takes 4 constraint rows). The
+  /// default holds a vehicle's four feet and its hub on the ground with room for
+  /// vehicle-vehicle contacts. MuJoCo 2.2 keeps one of its buffers at rows x rows, i.e.
+  /// quadratic in N: at 100 vehicles about 210 MB and 1.8 s to build with the default (see
+  /// docs/benchmarks.md "Scaling"). A step that needs more room throws SimulationError.
+  int contacts_per_vehicle = 10;
 
   /// Throws std::invalid_argument with context on a bad value (also checks each
   /// vehicle's params and sensors).
@@ -268,8 +275,10 @@ void ValidateSensors(const SensorsConfig& sensors, const std::string& who);
 
 /// Thrown by World::StepOnce when MuJoCo reports a numerical instability (its warnings for
 /// NaN, Inf or huge positions, velocities or accelerations, after which MuJoCo silently resets
-/// the state to the initial one): the simulation cannot go on honestly. The message holds
-/// the time and every vehicle's position and velocity just before the failed step.
+/// the state to the initial one) or a full contact or constraint buffer (MuJoCo then drops
+/// the contacts beyond it: vehicles would sink through the ground or each other): the
+/// simulation cannot go on honestly. The message holds the time and, for an instability,
+/// every vehicle's position and velocity just before the failed step.
 class SimulationError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
@@ -306,7 +315,7 @@ class World {
   /// Advances round(duration / physics_dt) physics steps (duration >= 0) [s].
   void Step(double duration);
   /// Advances exactly one physics step. Throws SimulationError when MuJoCo reports an
-  /// instability during the step (the world is unusable afterwards).
+  /// instability or a full contact buffer during the step (the world is unusable afterwards).
   void StepOnce();
 
   /// Pops the earliest delivered measurement (arrival <= time()), in arrival order

@@ -229,6 +229,33 @@ TEST(WorldTest, InstabilityStopsTheSimulationInsteadOfAResetIssue21) {
   }
 }
 
+TEST(WorldTest, FullContactBufferStopsTheSimulationInsteadOfDroppingContacts) {
+  // Given three vehicles on their feet (12 contacts) and room for 1 contact per vehicle
+  // (MuJoCo's buffer then holds 1 x (3 + 4) = 7),
+  WorldConfig c = QuietConfig(3);
+  c.contacts_per_vehicle = 1;
+  World world(c);
+  // When it steps, MuJoCo would drop the contacts beyond the buffer (feet through the
+  // ground): the step throws, naming the room and the setting.
+  try {
+    world.StepOnce();
+    FAIL() << "no SimulationError; vehicle 2 at z = " << world.GetTrueState(2).position.z();
+  } catch (const SimulationError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("contact buffer is full at t = 0 s (room for 7 contacts"),
+              std::string::npos)
+        << what;
+    EXPECT_NE(what.find("contacts_per_vehicle = 1 for 3 vehicles"), std::string::npos) << what;
+  }
+  // With room for two per vehicle (14) the same world steps on its feet.
+  c.contacts_per_vehicle = 2;
+  World roomy(c);
+  roomy.Step(0.5);
+  EXPECT_NEAR(roomy.GetTrueState(2).position.z(), World::kRestHeight, 3e-3);
+  c.contacts_per_vehicle = 0;
+  EXPECT_THROW(World{c}, std::invalid_argument);
+}
+
 TEST(WorldTest, SensorFasterThanPhysicsSamplesOncePerStep) {
   // A rate far above the physics rate must not step its sample index one at a time (1e9 Hz
   // hung the run); it samples once per physics step.
