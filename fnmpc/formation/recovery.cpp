@@ -87,6 +87,8 @@ std::string_view ToString(RecoveryReason r) {
       return "leader_down";
     case RecoveryReason::kNeighboursGone:
       return "neighbours_gone";
+    case RecoveryReason::kNoNeighbourSeen:
+      return "no_neighbour_seen";
   }
   return "?";
 }

@@ -150,6 +150,7 @@ enum class RecoveryReason : int {
   kVehicleBelow = 5,          ///< a sensed vehicle within r_min of the landing site, below
   kLeaderDown = 6,            ///< the leader landed or left the formation (TieLoss)
   kNeighboursGone = 7,        ///< every formation neighbour landed or left it (TieLoss)
+  kNoNeighbourSeen = 8,       ///< a follower's take-off ended with no neighbour ever sensed
 };
 std::string_view ToString(RecoveryAction a);
 std::string_view ToString(RecoveryReason r);

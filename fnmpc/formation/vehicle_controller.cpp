@@ -798,7 +798,12 @@ ControlOutput VehicleController::Step(double t) {
     height_error_lp_ = kNaN;
     pid_.Reset(config_.params.mass * kGravity);
   }
-  if (phase_ == FlightPhase::kNmpc && t >= config_.landing_time) BeginLanding(t, z);
+  // The mission's landing time ends the flight in either airborne phase: a vehicle still in
+  // its take-off then (waiting for a neighbour, below) lands instead of hovering on.
+  if ((phase_ == FlightPhase::kNmpc || phase_ == FlightPhase::kTakeoff) &&
+      t >= config_.landing_time) {
+    BeginLanding(t, z);
+  }
   // A follower without a formation tie to the leader lands where it is (docs/safety.md).
   if (phase_ == FlightPhase::kNmpc && !config_.leader) {
     const RecoveryReason lost = TieLossNow();
@@ -841,10 +846,24 @@ ControlOutput VehicleController::Step(double t) {
       at_height_.Update(z_ref_ >= h && std::abs(z - h) < kAtHeightBand &&
                             std::abs(height_error_lp_) < kAtHeightTolerance,
                         t);
-      const bool neighbours_ok =
-          std::all_of(estimates_.neighbours.begin(), estimates_.neighbours.end(),
-                      [](const estimation::NeighbourStateVec& x) { return x.allFinite(); });
-      if (at_height_.For(t, config_.hover_before_switch) && neighbours_ok &&
+      // The NMPC starts once every neighbour has an estimate, or, neighbour_timeout later,
+      // with those that have one: the others start out of the cost and join when first seen
+      // (UpdateNeighbourPresence). One never seen (out of sensor range, say) held a follower
+      // in its take-off hover until the battery ran out. With none seen by then there is no
+      // formation to keep: it lands where it is (as on losing every tie, docs/safety.md).
+      const auto seen =
+          std::count_if(estimates_.neighbours.begin(), estimates_.neighbours.end(),
+                        [](const estimation::NeighbourStateVec& x) { return x.allFinite(); });
+      const bool all_seen = seen == static_cast<std::ptrdiff_t>(estimates_.neighbours.size());
+      const bool waited =
+          at_height_.For(t, config_.hover_before_switch + config_.safety.neighbour_timeout);
+      if (waited && seen == 0 && !config_.leader) {
+        BeginLanding(t, z);
+        out.recovery = RecoveryAction::kLand;
+        out.recovery_reason = RecoveryReason::kNoNeighbourSeen;
+        break;
+      }
+      if (at_height_.For(t, config_.hover_before_switch) && (all_seen || waited) &&
           last_command_.allFinite()) {
         // Smooth switch: the NMPC starts from the PID's last command (guess and blend).
         phase_ = FlightPhase::kNmpc;

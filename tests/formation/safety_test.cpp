@@ -617,6 +617,82 @@ TEST(SafetyTest, LostNeighbourLeavesTheCostAndReturnsWithHysteresis) {
   EXPECT_FALSE(c.failsafe());
 }
 
+// The first time [s] `out` is in `phase` (NaN: never).
+double FirstIn(const std::vector<ControlOutput>& out, FlightPhase phase) {
+  for (const ControlOutput& o : out) {
+    if (o.phase == phase) return o.time;
+  }
+  return kNaN;
+}
+
+TEST(SafetyTest, NeighbourNeverSeenDoesNotHoldTheTakeoff) {
+  // Given a follower with two neighbours, one of which it never senses (out of range),
+  ControllerConfig cfg = BaseConfig(false);
+  cfg.neighbours = {{0, Vec3(1.0, -1.0, 0.0)}, {2, Vec3(-1.3, -1.4, 0.0)}};
+  VehicleController c(cfg);
+  Plant plant;
+  // When it takes off and flies for 15 s (neighbour 1 "lost" from t = 0 on),
+  const auto out = FlyFollowerWithLoss(&c, &plant, 0.0, 1e9, 15.0);
+  // Then it hands over to the NMPC neighbour_timeout after it would have with both (it
+  // hovered in its take-off for the whole flight before),
+  const double takeoff = FirstIn(out, FlightPhase::kTakeoff);
+  const double nmpc = FirstIn(out, FlightPhase::kNmpc);
+  ASSERT_TRUE(std::isfinite(nmpc));
+  EXPECT_GE(nmpc - takeoff, cfg.hover_before_switch + cfg.safety.neighbour_timeout);
+  EXPECT_LT(nmpc - takeoff, 8.0);
+  // with the neighbour it sees in its cost and holds that neighbour's offset alone,
+  EXPECT_EQ(out.back().active_neighbours, 1);
+  const Vec3 p0(1.3, -0.8, 1.1);
+  EXPECT_LT(((p0 - plant.x.head<3>()) - Vec3(1.0, -1.0, 0.0)).norm(), 0.03);
+  EXPECT_EQ(c.fallbacks(), 0);
+  EXPECT_FALSE(c.failsafe());
+}
+
+TEST(SafetyTest, NoNeighbourSeenLandsFromTheTakeoff) {
+  // Given a follower that never senses its only neighbour,
+  ControllerConfig cfg = BaseConfig(false);
+  VehicleController c(cfg);
+  Plant plant;
+  std::vector<ControlOutput> out;
+  const std::vector<estimation::NeighbourStateVec> none(
+      1, estimation::NeighbourStateVec::Constant(kNaN));
+  // When it takes off and 20 s pass,
+  for (double t = 0.0; t <= 20.0; t += kTs) {
+    estimation::VehicleEstimate e = plant.Estimate(t);
+    e.position.z() -= kGround;
+    out.push_back(c.ControlWithEstimates(t, e, none));
+    plant.Step(out.back());
+  }
+  // Then it never starts the NMPC: at height for hover_before_switch + neighbour_timeout it
+  // lands where it is, saying why, and touches down gently with its motors off.
+  EXPECT_TRUE(std::isnan(FirstIn(out, FlightPhase::kNmpc)));
+  const auto land = std::find_if(out.begin(), out.end(), [](const ControlOutput& o) {
+    return o.recovery == RecoveryAction::kLand;
+  });
+  ASSERT_NE(land, out.end());
+  EXPECT_EQ(land->recovery_reason, RecoveryReason::kNoNeighbourSeen);
+  EXPECT_GE(land->time - FirstIn(out, FlightPhase::kTakeoff),
+            cfg.hover_before_switch + cfg.safety.neighbour_timeout);
+  EXPECT_EQ(c.phase(), FlightPhase::kLanded);
+  EXPECT_GT(plant.impact_vz, -0.6);
+  EXPECT_EQ(out.back().thrust, 0.0);
+}
+
+TEST(SafetyTest, LandingTimeEndsATakeoffThatHasNotCompleted) {
+  // Given a leader whose landing time comes while it still climbs,
+  ControllerConfig cfg = BaseConfig(true);
+  cfg.landing_time = 1.5;
+  VehicleController c(cfg);
+  Plant plant;
+  // When 10 s pass,
+  const auto out = Fly(&c, &plant, 10.0);
+  // Then it lands from its take-off at the landing time (it climbed on before) and is down.
+  EXPECT_TRUE(std::isnan(FirstIn(out, FlightPhase::kNmpc)));
+  EXPECT_NEAR(FirstIn(out, FlightPhase::kLanding), cfg.landing_time, kTs / 2);
+  EXPECT_EQ(c.phase(), FlightPhase::kLanded);
+  EXPECT_GT(plant.impact_vz, -0.6);
+}
+
 TEST(SafetyTest, NoAllocationFromTakeoffToLanding) {
   // Given a leader and a follower built (all allocation happens here)
   ControllerConfig lc = BaseConfig(true);
