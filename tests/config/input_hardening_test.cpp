@@ -243,6 +243,17 @@ TEST(InputHardeningTest, LeaderWithoutMocapAndUnreachableNeighbourAreWarned) {
   EXPECT_NE(all.find("no absolute position sensing"), std::string::npos) << all;
   EXPECT_NE(all.find("beyond the relative sensor's max_range"), std::string::npos) << all;
   EXPECT_NE(all.find("key 'vehicles[1].neighbours[0].vehicle'"), std::string::npos) << all;
+  // A desired offset outside the follower's relative-position bound is warned, at its key.
+  const ScenarioConfig far = ParseScenario(YamlMap::LoadString(
+      Replace(ShippedScenarioText(kTriangle),
+              "    start: [-2.0, 1.5]\n    frame: m\n    relative_position_bound: [4.0, 4.0, 1.5]",
+              "    start: [-2.0, 1.5]\n    frame: m\n    relative_position_bound: [1.0, 4.0, 1.5]"),
+      "s.yaml"));
+  std::string far_all;
+  for (const auto& w : far.warnings) far_all += w + "\n";
+  EXPECT_NE(far_all.find("outside its relative_position_bound (1, 4, 1.5) m"), std::string::npos)
+      << far_all;
+  EXPECT_NE(far_all.find(".desired'"), std::string::npos) << far_all;
   // The shipped scenario has none.
   EXPECT_TRUE(ParseScenario(YamlMap::LoadString(ShippedScenarioText(kTriangle), "s.yaml"))
                   .warnings.empty());

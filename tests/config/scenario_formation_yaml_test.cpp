@@ -135,5 +135,21 @@ TEST(ScenarioFormationYamlTest, TiesBeyondTheSensorRangeAreWarnings) {
       << s.warnings.front();
 }
 
+TEST(ScenarioFormationYamlTest, DesiredOffsetsOutsideTheRelativeBoundAreWarnings) {
+  // A 12-vehicle circle (radius 4.4 m) with 8 ties: ties across it, beyond the 6 m bound.
+  const FormationFile f("formation: {shape: circle, count: 12, spacing: 2.5, ties: 8}\n");
+  const ScenarioConfig s = LoadScenarioFile(f.path());
+  std::string all;
+  for (const auto& w : s.warnings) all += w + "\n";
+  EXPECT_NE(all.find("formation.ties"), std::string::npos) << all;
+  EXPECT_NE(all.find("lies outside its relative_position_bound (6, 6, 2) m"), std::string::npos)
+      << all;
+  // With 2 ties every offset fits the bound: no such warning.
+  const FormationFile two("formation: {shape: circle, count: 12, spacing: 2.5, ties: 2}\n");
+  for (const auto& w : LoadScenarioFile(two.path()).warnings) {
+    EXPECT_EQ(w.find("relative_position_bound"), std::string::npos) << w;
+  }
+}
+
 }  // namespace
 }  // namespace fnmpc::config
