@@ -5,14 +5,12 @@
 #include <benchmark/benchmark.h>
 #include <mujoco/mujoco.h>
 
-#include <array>
-#include <cstring>
 #include <memory>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "fnmpc/config/vehicle_yaml.hpp"
+#include "fnmpc/sim/mjcf_model.hpp"
 #include "fnmpc/sim/world.hpp"
 
 namespace {
@@ -105,20 +103,8 @@ enum Layout : int { kOneModel = 0, kModelPerVehicle = 1 };
 struct MujocoPair {
   mjModel* m = nullptr;
   mjData* d = nullptr;
-  explicit MujocoPair(const std::string& xml) {
-    auto vfs = std::make_unique<mjVFS>();
-    mj_defaultVFS(vfs.get());
-    const char* name = "bench.xml";
-    if (mj_makeEmptyFileVFS(vfs.get(), name, static_cast<int>(xml.size())) != 0) {
-      throw std::runtime_error("cannot create the in-memory MJCF file");
-    }
-    std::memcpy(vfs->filedata[mj_findFileVFS(vfs.get(), name)], xml.data(), xml.size());
-    std::array<char, 1000> err{};
-    m = mj_loadXML(name, vfs.get(), err.data(), static_cast<int>(err.size()));
-    mj_deleteVFS(vfs.get());
-    if (m == nullptr) throw std::runtime_error(err.data());
-    d = mj_makeData(m);
-  }
+  explicit MujocoPair(const std::string& xml)
+      : m(fnmpc::sim::CompileMjcf(xml, "[sim_bench]")), d(mj_makeData(m)) {}
   MujocoPair(const MujocoPair&) = delete;
   MujocoPair& operator=(const MujocoPair&) = delete;
   ~MujocoPair() {

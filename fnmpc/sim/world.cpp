@@ -18,6 +18,7 @@
 #include "fnmpc/core/rotation.hpp"
 #include "fnmpc/sim/cell_list.hpp"
 #include "fnmpc/sim/free_joint_force.hpp"
+#include "fnmpc/sim/mjcf_model.hpp"
 
 namespace fnmpc::sim {
 
@@ -393,24 +394,7 @@ struct World::Impl {
   }
 
   void Load() {
-    auto vfs = std::make_unique<mjVFS>();  // ~2 MB: never on the stack
-    mj_defaultVFS(vfs.get());
-    const char* name = "fnmpc_world.xml";
-    if (mj_makeEmptyFileVFS(vfs.get(), name, static_cast<int>(xml.size())) != 0) {
-      throw std::runtime_error("[World] cannot create the in-memory MJCF file");
-    }
-    const int idx = mj_findFileVFS(vfs.get(), name);
-    std::memcpy(vfs->filedata[idx], xml.data(), xml.size());
-    std::array<char, 1000> err{};
-    {
-      // MuJoCo's XML compiler is not documented as thread-safe; worlds may be built from
-      // several threads (`fnmpc run --jobs`). Stepping needs no lock: each world owns its data.
-      static std::mutex compile_mutex;
-      const std::lock_guard<std::mutex> lock(compile_mutex);
-      m = mj_loadXML(name, vfs.get(), err.data(), static_cast<int>(err.size()));
-    }
-    mj_deleteVFS(vfs.get());
-    if (m == nullptr) throw std::runtime_error(std::string("[World] MuJoCo: ") + err.data());
+    m = CompileMjcf(xml, "[World]");
     d = mj_makeData(m);
     if (d == nullptr) throw std::runtime_error("[World] mj_makeData failed");
   }
