@@ -142,6 +142,7 @@ struct ControllerEstimates {
 };
 
 class NmpcCore;  // leader or reduced follower solver (nmpc_core.hpp)
+struct NmpcInput;
 
 /// The controller of one vehicle. Feed every measurement with Process() as it arrives and
 /// call Control(t) every Ts; Control never returns a non-finite command.
@@ -224,7 +225,15 @@ class VehicleController {
   [[nodiscard]] const NeighbourPlans& neighbour_plans() const { return plans_; }
 
  private:
+  // The flight phases (vehicle_controller_phases.cpp).
   ControlOutput Step(double t);
+  void UpdatePhase(double t, double z, ControlOutput* out);
+  Vec3 TakeoffCommand(double t, double dt, double z, ControlOutput* out);
+  Vec3 LandingCommand(double t, double dt, double z, ControlOutput* out);
+  void FillNmpcInput(double t, double z, NmpcInput* in, ControlOutput* out);
+  Vec3 NmpcCommand(double t, double z, ControlOutput* out);
+  Vec3 FailsafeCommand(double t, double dt);
+  void SendCommand(Vec3 command, double dt, ControlOutput* out);
   double Height(double t) const;
   [[nodiscard]] Vec<2> HoldError() const;
   void Blend(double t, double* thrust, double* roll, double* pitch) const;
@@ -237,8 +246,7 @@ class VehicleController {
   bool PidEstimateLost(double t, double z, ControlOutput* out);
   bool TouchedDown(double t, double z, double vz);
   bool ClearLandingSite(double t, ControlOutput* out);
-  template <class Input>
-  void NearestObstacles(double t, Input* in) const;
+  void NearestObstacles(double t, NmpcInput* in) const;
   void TrackMocapPose(const Measurement& m);
   bool RawMocapFresh(double t) const;
   double FailsafeHeight(double t) const;
