@@ -93,6 +93,8 @@ void VehicleEkfConfig::Validate() const {
   Require(zupt_std > 0.0, "zupt_std", zupt_std, "must be > 0");
   Require(landed_accel_std > 0.0 && std::isfinite(landed_accel_std), "landed_accel_std",
           landed_accel_std, "must be finite and > 0");
+  Require(landed_gyro_std > 0.0 && std::isfinite(landed_gyro_std), "landed_gyro_std",
+          landed_gyro_std, "must be finite and > 0");
   Require(disturbance_noise >= 0.0 && std::isfinite(disturbance_noise), "disturbance_noise",
           disturbance_noise, "must be finite and >= 0");
   Require(initial_disturbance_std > 0.0 && std::isfinite(initial_disturbance_std),
@@ -498,12 +500,13 @@ EkfStatus VehicleEkf::ApplyMeasurement(const Measurement& m, State* s) const {
         UpdateTakeoffEvidence(kEvidenceImu, a_world.norm() > config_.takeoff_accel, m.stamp, s);
       }
       if (s->mode == VehicleMode::kLanded) {
-        // The resting model's error bounds the accelerometer's std from below: with the
-        // sensor's noise alone, a near-ideal IMU fused the settling at placement as a bias
-        // and then gated every later sample (docs/estimation.md, "Landed").
+        // The resting model's error bounds the IMU's std from below: with the sensor's noise
+        // alone, a near-ideal IMU fused the settling at placement as a bias and then gated
+        // every later sample (docs/estimation.md, "Landed").
         const Mat3 Ra =
             sc.imu.noise.cwiseMax(config_.landed_accel_std).array().square().matrix().asDiagonal();
-        const Mat3 Rg = sc.imu.noise2.array().square().matrix().asDiagonal();
+        const Mat3 Rg =
+            sc.imu.noise2.cwiseMax(config_.landed_gyro_std).array().square().matrix().asDiagonal();
         const EkfStatus sa =
             Update<3>(m.kind, m.accel - LandedAccel(s->x), LandedAccelJacobian(s->x), Ra, s);
         Mat<3, kN> Hg = Mat<3, kN>::Zero();

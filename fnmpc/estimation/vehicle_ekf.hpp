@@ -65,11 +65,12 @@ struct VehicleEkfConfig {
   double landed_position_noise = 1e-3;   ///< landed position random walk [m/sqrt(s)]
   double landed_attitude_noise = 1e-3;   ///< landed attitude random walk [rad/sqrt(s)]
   double zupt_std = 0.005;               ///< landed zero-velocity pseudo-measurement std [m/s]
-  /// Floor of the landed accelerometer update's std per axis [m/s^2]: the error of the
-  /// resting model f = R^T g e3 + b_a (contact settling, motors spinning up, handling), which
-  /// a near-ideal IMU's noise does not cover. 0.05: the default sensors' IMU noise, so the
-  /// default configuration is unchanged (docs/estimation.md).
-  double landed_accel_std = 0.05;
+  /// Floors of the landed IMU updates' std per axis: the error of the resting model
+  /// f = R^T g e3 + b_a, w = b_g (contact settling, motors spinning up, handling), which a
+  /// near-ideal IMU's noise does not cover. The default sensors' IMU noise, so the default
+  /// configuration is unchanged (docs/estimation.md).
+  double landed_accel_std = 0.05;  ///< [m/s^2]
+  double landed_gyro_std = 0.005;  ///< [rad/s]
   /// Random walk of the external acceleration d while flying [m/s^2/sqrt(s)]. Default from
   /// the physics of what d stands for: a change of 0.1 g within about 1 s (a gust front, a
   /// neighbour's wake entered at 1 m/s: its half-width of a few decimetres is crossed in

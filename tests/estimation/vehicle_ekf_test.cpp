@@ -597,20 +597,24 @@ TEST(VehicleEkfTest, MeasurementsBeforeInitializationAreCounted) {
 namespace fnmpc::estimation {
 namespace {
 
-// A resting vehicle with a near-ideal IMU (noise 1e-6): its first samples carry the settling
-// of the placement (0.2 m/s^2 off g, as in the simulator's first milliseconds), then exact g
-// for 2 s. Returns the filter after the stream; vehicle 0, mocap pose at 60 Hz, IMU at 250 Hz.
-VehicleEkf RestingWithSettling(double landed_accel_std) {
+// A resting vehicle with a near-ideal IMU (noise 1e-6): its first accelerometer samples carry
+// the settling of the placement (those of the simulator's first 16 ms, up to 0.19 m/s^2 below
+// g), its first gyro samples 0.01 rad/s (assumed: the simulator's are zero, a real frame's
+// with its motors spinning up are not), then exact g and rest for 2 s. Returns the filter after
+// the stream; vehicle 0, pose at 62.5 Hz, IMU at 250 Hz.
+VehicleEkf RestingWithSettling(double landed_accel_std, double landed_gyro_std) {
   VehicleEkfConfig cfg;
   cfg.sensors.imu.noise = Vec3::Constant(1e-6);
   cfg.sensors.imu.noise2 = Vec3::Constant(1e-6);
   cfg.landed_accel_std = landed_accel_std;
+  cfg.landed_gyro_std = landed_gyro_std;
   VehicleEkf ekf(cfg, model::VehicleParams{});
-  const std::array<double, 4> settle{9.61, 9.69, 9.91, 9.90};
+  const std::array<double, 4> settle{9.62, 9.70, 9.75, 9.79};
+  const std::array<double, 4> settle_rate{0.01, -0.008, 0.006, -0.004};  // [rad/s]
   int k_imu = 0;
   for (int k = 0; k <= 500; ++k) {
     const double t = k / 250.0;
-    if (k % 4 == 0 || k == 0) {  // 62.5 Hz pose (the filter starts on it)
+    if (k % 4 == 0) {  // 62.5 Hz pose (the filter starts on it)
       Measurement m;
       m.kind = SensorKind::kMocapPose;
       m.vehicle = 0;
@@ -624,7 +628,7 @@ VehicleEkf RestingWithSettling(double landed_accel_std) {
     m.vehicle = 0;
     m.stamp = m.arrival = t + 1e-4;
     m.accel = Vec3(0.0, 0.0, k_imu < 4 ? settle[k_imu] : kGravity);
-    m.gyro = Vec3::Zero();
+    m.gyro = k_imu < 4 ? Vec3(settle_rate[k_imu], -settle_rate[k_imu], 0.0) : Vec3(Vec3::Zero());
     ++k_imu;
     ekf.Process(m);
   }
@@ -636,24 +640,32 @@ TEST(VehicleEkfTest, NearIdealImuAtRestDoesNotLockInTheSettlingAsABias) {
   // settling after its placement arrives first, then the landed accelerometer update (std
   // floored at landed_accel_std, default 0.05 m/s^2) does not take it for a bias: no IMU
   // sample gated, the bias back at zero.
-  const VehicleEkf ekf = RestingWithSettling(VehicleEkfConfig{}.landed_accel_std);
+  const VehicleEkfConfig defaults;
+  const VehicleEkf ekf = RestingWithSettling(defaults.landed_accel_std, defaults.landed_gyro_std);
   const double t = 2.0;
   EXPECT_EQ(ekf.counters().Get(EkfStatus::kRejectedGated, SensorKind::kImu), 0);
   EXPECT_LT(ekf.Estimate(t).accel_bias.norm(), 0.01);
+  EXPECT_LT(ekf.Estimate(t).gyro_bias.norm(), 0.001);
   EXPECT_TRUE(ekf.Estimate(t).valid);
   // The mechanism, with the floor removed: the first samples become a confident bias of
   // about -0.2 m/s^2 and almost every later sample is gated (the follower of a scenario with
   // such an IMU handed over to its failsafe in the take-off, docs/estimation.md).
-  const VehicleEkf unfloored = RestingWithSettling(1e-9);
+  const VehicleEkf unfloored = RestingWithSettling(1e-9, defaults.landed_gyro_std);
   EXPECT_GT(unfloored.counters().Get(EkfStatus::kRejectedGated, SensorKind::kImu), 250);
   EXPECT_GT(unfloored.Estimate(t).accel_bias.norm(), 0.05);
+  // The same for the gyro alone (its settling, 0.01 rad/s, locked in as a gyro bias).
+  const VehicleEkf gyro_unfloored = RestingWithSettling(defaults.landed_accel_std, 1e-9);
+  EXPECT_GT(gyro_unfloored.counters().Get(EkfStatus::kRejectedGated, SensorKind::kImu), 250);
 }
 
-TEST(VehicleEkfTest, LandedAccelStdMustBePositiveAndFinite) {
+TEST(VehicleEkfTest, LandedImuStdFloorsMustBePositiveAndFinite) {
   VehicleEkfConfig cfg;
   cfg.landed_accel_std = 0.0;
   EXPECT_THROW(cfg.Validate(), std::invalid_argument);
   cfg.landed_accel_std = kInf;
+  EXPECT_THROW(cfg.Validate(), std::invalid_argument);
+  cfg = VehicleEkfConfig{};
+  cfg.landed_gyro_std = -1.0;
   EXPECT_THROW(cfg.Validate(), std::invalid_argument);
 }
 
