@@ -58,7 +58,8 @@ NeighbourEkfConfig TestConfig() {
   c.observer = 0;
   c.target = 2;
   c.accel_noise = 0.3;
-  c.hover_accel_noise = 0.0;  // one model: the truth below is drawn from it
+  c.hover_accel_noise = 0.0;   // one model: the truth below is drawn from it
+  c.own_velocity_noise = 0.0;  // the own velocity fed below is exact
   c.yaw_accel_noise = 0.2;
   c.initial_velocity_std = 0.5;
   c.initial_yaw_rate_std = 0.3;
@@ -394,6 +395,23 @@ struct HoverLegRun {
   double hover_probability_end = kNaN;
 };
 
+// Observer 0 (at the origin, level, yaw 0) measuring target 2 at p at time t, with the
+// sensor's white noise drawn from *nd.
+Measurement NoisyRelative(double t, const Vec3& p, const SensorSpec& spec, std::mt19937* rng,
+                          std::normal_distribution<double>* nd) {
+  Measurement m;
+  m.kind = SensorKind::kRelative;
+  m.vehicle = 0;
+  m.stamp = t;
+  m.relative = testing::TrueRelative(Vec3::Zero(), Vec3::Zero(), p, 0.0, 2);
+  RelativeObservation& o = m.relative;
+  o.range += spec.noise.x() * (1.0 + spec.range_noise_growth * o.range) * (*nd)(*rng);
+  o.bearing = WrapAngle(o.bearing + spec.noise.y() * (*nd)(*rng));
+  o.elevation += spec.noise.z() * (*nd)(*rng);
+  o.relative_yaw = WrapAngle(o.relative_yaw + spec.noise2.x() * (*nd)(*rng));
+  return m;
+}
+
 HoverLegRun FlyHoverLeg(const NeighbourEkfConfig& cfg, std::uint32_t seed) {
   constexpr double kDt = 0.01, kLegStart = 10.0, kLeg = 4.0, kLength = 1.8, kEnd = 22.0;
   const Vec3 start(2.0, -1.5, 0.3);
@@ -411,17 +429,7 @@ HoverLegRun FlyHoverLeg(const NeighbourEkfConfig& cfg, std::uint32_t seed) {
     const double vel = kLength / kLeg * 30.0 * s * s * (1.0 - s) * (1.0 - s);
     const Vec3 p = start + Vec3(pos, 0.0, 0.0), v(vel, 0.0, 0.0);
     if (k % 2 == 0) {  // 50 Hz
-      Measurement m;
-      m.kind = SensorKind::kRelative;
-      m.vehicle = 0;
-      m.stamp = t;
-      m.relative = testing::TrueRelative(Vec3::Zero(), Vec3::Zero(), p, 0.0, 2);
-      RelativeObservation& o = m.relative;
-      o.range += spec.noise.x() * (1.0 + spec.range_noise_growth * o.range) * nd(rng);
-      o.bearing = WrapAngle(o.bearing + spec.noise.y() * nd(rng));
-      o.elevation += spec.noise.z() * nd(rng);
-      o.relative_yaw = WrapAngle(o.relative_yaw + spec.noise2.x() * nd(rng));
-      ekf.Process(m, Vec3::Zero(), Vec3::Zero());
+      ekf.Process(NoisyRelative(t, p, spec, &rng, &nd), Vec3::Zero(), Vec3::Zero());
     }
     if (k % 5 != 1) continue;  // 20 Hz
     ekf.PredictTo(t, Vec3::Zero());
@@ -542,17 +550,7 @@ std::pair<double, double> HoldWithOwnVelocityError(double own_velocity_noise, do
     const double t = k * kDt;
     own_v_error = a * own_v_error + b * Vec3(nd(rng), nd(rng), nd(rng));
     if (k % 2 == 0) {  // 50 Hz
-      Measurement m;
-      m.kind = SensorKind::kRelative;
-      m.vehicle = 0;
-      m.stamp = t;
-      m.relative = testing::TrueRelative(Vec3::Zero(), Vec3::Zero(), p, 0.0, 2);
-      RelativeObservation& o = m.relative;
-      o.range += spec.noise.x() * (1.0 + spec.range_noise_growth * o.range) * nd(rng);
-      o.bearing = WrapAngle(o.bearing + spec.noise.y() * nd(rng));
-      o.elevation += spec.noise.z() * nd(rng);
-      o.relative_yaw = WrapAngle(o.relative_yaw + spec.noise2.x() * nd(rng));
-      ekf.Process(m, Vec3::Zero(), own_v_error);
+      ekf.Process(NoisyRelative(t, p, spec, &rng, &nd), Vec3::Zero(), own_v_error);
     }
     if (k % 5 != 1) continue;  // 20 Hz
     ekf.PredictTo(t, own_v_error);
