@@ -519,7 +519,7 @@ ControlOutput VehicleController::Control(double t) {
   }
   UpdateNeighbourPresence(t);
   CheckVelocityConsistency(t);
-  const ControlOutput out = Step(t);
+  ControlOutput out = Step(t);
   // The wake model's part of the external acceleration (Compensation::kWake) is known to the
   // estimator, whose d then carries the rest only (no double counting in the prediction).
   if (ekf_.initialized()) ekf_.SetCommand(t, out.thrust, out.roll, out.pitch, out.yaw, out.wake);

@@ -295,7 +295,7 @@ Vec3 VehicleController::TakeoffCommand(double t, double dt, double z, ControlOut
     vz_ref = z_ref_ < h ? config_.climb_speed : 0.0;
   }
   const PidCommand c = pid_.Update(dt, z_ref_, vz_ref, z, own.velocity, own.euler, HoldError());
-  const Vec3 command(c.thrust, c.roll, c.pitch);  // also this step's when it lands (below)
+  Vec3 command(c.thrust, c.roll, c.pitch);  // also this step's when it lands (below)
   // At height: the height error low-passed over a third of the hover time within
   // kAtHeightTolerance and every sample within kAtHeightBand, for hover_before_switch. The
   // filter lets a gusty push average out (another vehicle's turbulent wake); requiring

@@ -2,12 +2,19 @@
 #include "fnmpc/sim/mjcf_model.hpp"
 
 #include <array>
+#include <cstdio>
 #include <cstring>
 #include <memory>
 #include <mutex>
 #include <stdexcept>
 
 namespace fnmpc::sim {
+
+namespace {
+
+void WarningToStderr(const char* message) { std::fprintf(stderr, "MuJoCo warning: %s\n", message); }
+
+}  // namespace
 
 mjModel* CompileMjcf(const std::string& xml, const std::string& who) {
   auto vfs = std::make_unique<mjVFS>();  // ~2 MB: never on the stack
@@ -23,6 +30,7 @@ mjModel* CompileMjcf(const std::string& xml, const std::string& who) {
     // Stepping needs no lock: each world owns its data.
     static std::mutex compile_mutex;
     const std::lock_guard<std::mutex> lock(compile_mutex);
+    if (mju_user_warning == nullptr) mju_user_warning = WarningToStderr;
     m = mj_loadXML(name, vfs.get(), err.data(), static_cast<int>(err.size()));
   }
   mj_deleteVFS(vfs.get());

@@ -12,6 +12,11 @@ namespace fnmpc::sim {
 /// threads (`fnmpc run --jobs`): compilations are serialised by a process-wide mutex. Throws
 /// std::runtime_error starting with `who` when MuJoCo rejects the model. The caller owns the
 /// model (mj_deleteModel).
+///
+/// The first call also routes MuJoCo's warnings to stderr ("MuJoCo warning: ..."), unless
+/// the program installed its own `mju_user_warning`: MuJoCo's default handler appends every
+/// warning to MUJOCO_LOG.TXT in the working directory. The World turns the warnings that
+/// matter into SimulationError from its counters (docs/failure.md), so nothing is lost.
 [[nodiscard]] mjModel* CompileMjcf(const std::string& xml, const std::string& who);
 
 }  // namespace fnmpc::sim
