@@ -1,6 +1,6 @@
 #!/bin/bash
 # SPDX-License-Identifier: BSD-3-Clause
-# Issue #17, docs/results.md "Beating the wake": every shipped scenario flown with the four
+# The campaign of docs/results.md "Beating the wake": every shipped scenario flown with the four
 # compensation levels (10 seeds each, reality as the scenario ships it), plus cooperative mode on
 # a lossy link (30 % loss, 100 ms latency) and the flying leader on 2 s legs. Run from the
 # repository root; a folder that already has its summary.json is kept (resumable).
@@ -22,8 +22,8 @@ run() { # folder scenario level
   "$F" run "$2" --runs "$RUNS" --compensation "$3" -q -o "$R/$1" >/dev/null 2>"$R/$1.err"
   echo "$(date +%T) $1 exit $?" >>"$R/progress.log"
 }
-# Variants (vehicle and sensor paths made absolute): the flying leader on 2 s legs (the issue's
-# geometry), and the lossy link.
+# Variants (vehicle and sensor paths made absolute): the flying leader on 2 s legs, and
+# the lossy link.
 sed -e "s#\.\./#$PWD/config/#" -e 's/^  leg_duration: 4.0/  leg_duration: 2.0/' \
   config/scenarios/flying-leader-paper.yaml >"$R/flying-leader-2s.yaml"
 for sc in follower-below-leader flying-leader-paper triangle manual-leader; do

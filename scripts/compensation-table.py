@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: BSD-3-Clause
-"""Compensation levels side by side (issue #17, docs/results.md "Beating the wake").
+"""Compensation levels side by side (docs/results.md "Beating the wake").
 
 Reads run folders of `fnmpc run` (summary.json at the top, run-NN/<vehicle>.csv) and prints
 one markdown row per folder: the aggregate steady-state / mean / max formation error (worst

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: BSD-3-Clause
-"""Formation error and peak speed per graph depth of a run folder (issue #18, string
-stability): depth = fewest formation ties from the leader, as each run's summary.json gives
-it per vehicle (`fnmpc run --dry-run` prints it too).
+"""Formation error and peak speed per graph depth of a run folder (string stability,
+docs/results.md "Scale"): depth = fewest formation ties from the leader, as each run's
+summary.json gives it per vehicle (`fnmpc run --dry-run` prints it too).
 
   scripts/depth-profile.py RUN_FOLDER [--plot depth.png]
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: BSD-3-Clause
-"""Neighbour killed mid-flight (issue 20, docs/results.md "Fault injection: neighbour killed"):
+"""Neighbour killed mid-flight (docs/results.md "Fault injection: neighbour killed mid-flight"):
 the remaining follower's error to the leader after the killed neighbour left its cost, against
 the fault-free flight with the same seed and plant.
 
@@ -11,7 +11,7 @@ the fault-free flight with the same seed and plant.
 Per seed: when the follower dropped the killed vehicle (summary.json
 faults.kill_controller.followers.<follower>.dropped_from_cost_s), the mean of the CSV column
 `err0` (its error to the leader, the first neighbour) over the steady-state samples (`steady`
-= 1) from that time on, in both flights, and their ratio (the issue's figure); the same
+= 1) from that time on, in both flights, and their ratio (the figure of docs/results.md); the same
 split into the first steady-state window after the drop and the later ones (the return from
 where the departing neighbour pulled it, and the flight after it); its largest error to the
 leader after the kill."""

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: BSD-3-Clause
-"""Paired per-seed comparison of two run folders of the same scenario (issue #17,
-docs/results.md "Cooperative mode"), and where the steady-state difference comes from.
+"""Paired per-seed comparison of two run folders of the same scenario (docs/results.md
+"Cooperative mode"), and where the steady-state difference comes from.
 
     scripts/paired-seeds.py BASE OTHER [FOLLOWER] [LEADER]
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: BSD-3-Clause
-"""Scaling benchmark of the whole closed loop (issue #18): real-time factor and peak
-resident memory of `fnmpc run` for growing generated formations.
+"""Scaling benchmark of the whole closed loop (docs/benchmarks.md "Scaling"): real-time factor
+and peak resident memory of `fnmpc run` for growing generated formations.
 
   scripts/scaling-bench.py [--fnmpc build/apps/fnmpc/fnmpc] [--counts 2 3 10 25 50 100]
                            [--shape grid] [--duration 40] [--repeat 1] [--threads 2]

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: BSD-3-Clause
-"""Robustness study of `fnmpc sysid` + `fnmpc calibrate` (issue #14, docs/sysid.md).
+"""Robustness study of `fnmpc sysid` + `fnmpc calibrate` (docs/sysid.md "Robustness study").
 
     PATH=/usr/bin:$PATH /usr/bin/python3 tools/sysid_robustness.py FNMPC [OUTDIR]
 

@@ -31,9 +31,9 @@ formation::ControllerConfig ControllerConfigFor(const config::ScenarioConfig& sc
 /// The world: every vehicle resting at its start, noise seeded from `seed`; with the
 /// scenario's reality on, ApplyReality's true plants and wind.
 sim::WorldConfig WorldConfigFor(const config::ScenarioConfig& scenario, std::uint64_t seed);
-/// Reality (issue #15) on a world built from `scenario`: each vehicle's true plant (its
-/// `plant_file`, else drawn by model::DrawTruePlant for (seed, vehicle index) from the
-/// spread of `reality.plant`) and the wind of `reality.wind`.
+/// Reality (docs/simulator.md "Reality") on a world built from `scenario`: each vehicle's true
+/// plant (its `plant_file`, else drawn by model::DrawTruePlant for (seed, vehicle index) from
+/// the spread of `reality.plant`) and the wind of `reality.wind`.
 void ApplyReality(const config::ScenarioConfig& scenario, std::uint64_t seed,
                   sim::WorldConfig* world);
 

@@ -2,11 +2,11 @@
 // One control step of the VehicleController in the NMPC phase (command path only, then the
 // diagnostics apart): a follower with 2 neighbours hovering in formation, with and without
 // the input-rate and collision terms active, and with the disturbance observer's external
-// acceleration in the prediction, and with the neighbours' predicted wakes (issue #17). Goal
-// of issues #20/#17: <= 20 us median. Time: the controller's call alone (manual timing with
-// the steady clock); CPU: the whole loop, with the scenario's plant step and estimate
-// synthesis. The scenario: control_step_scenario.hpp; its instruction counts:
-// controller_step_count.
+// acceleration in the prediction, and with the neighbours' predicted wakes (compensation level
+// `wake`). Target: <= 20 us median (docs/benchmarks.md "Controller control step"). Time: the
+// controller's call alone (manual timing with the steady clock); CPU: the whole loop, with the
+// scenario's plant step and estimate synthesis. The scenario: control_step_scenario.hpp; its
+// instruction counts: controller_step_count.
 //   ./build/bench/formation/controller_bench
 #include <benchmark/benchmark.h>
 

@@ -15,7 +15,7 @@ inline constexpr const char* kTopLevelKey = "(top level)";
 /// `key:` names that key; a `- ` sequence item names its index; a blank or continuation line
 /// belongs to the nearest key above it that encloses it. Returns kTopLevelKey when the line
 /// lies in no key. Used to give syntax, encoding and structure errors the key of the region
-/// they fall in (issue #21: every rejection names file, line and key).
+/// they fall in (every rejection names file, line and key: docs/failure.md).
 std::string YamlKeyAtLine(const std::string& text, int line);
 
 }  // namespace fnmpc::config

@@ -186,8 +186,8 @@ class VehicleEkf {
   /// Records the command valid from time t [s]: collective thrust [N] and attitude
   /// references [rad]. Used by the command motion model and by the mode logic.
   /// `known_acceleration` [m/s^2, {n}]: the part of the external acceleration the controller
-  /// models itself (its wake model, issue #17 item 2), held with the command: the thrust model
-  /// then explains it, and d estimates only the rest.
+  /// models itself (its wake model, compensation level `wake`), held with the command: the
+  /// thrust model then explains it, and d estimates only the rest.
   EkfStatus SetCommand(double t, double thrust, double roll_ref, double pitch_ref, double yaw_ref,
                        const Vec3& known_acceleration = Vec3::Zero());
 

@@ -6,7 +6,7 @@
 
 #include "fnmpc/core/types.hpp"
 
-/// Offset-free attitude (issue #17 Build item 1): an estimate of the constant roll and pitch
+/// Offset-free attitude: an estimate of the constant roll and pitch
 /// offset by which a vehicle's attitude loop misses its model, and the reference that cancels
 /// it.
 ///

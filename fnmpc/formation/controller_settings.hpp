@@ -8,8 +8,8 @@
 
 namespace fnmpc::formation {
 
-/// How much of the aerodynamic interaction the NMPC compensates (issue 17's ablation levels;
-/// each includes the ones before it).
+/// How much of the aerodynamic interaction the NMPC compensates (the levels compared in
+/// docs/results.md "Beating the wake"; each includes the ones before it).
 enum class Compensation : int {
   kNone = 0,         ///< the reference work's controller: no disturbance in the prediction
   kObserver = 1,     ///< the own estimator's external acceleration d as a stage parameter

@@ -6,7 +6,7 @@
 #include "fnmpc/core/types.hpp"
 
 /// A follower's estimate of a neighbour's acceleration and the neighbour prediction that uses
-/// it (issue #18, string stability down the graph).
+/// it (string stability down the graph, docs/results.md "Scale").
 ///
 /// Why: with each follower regulating a constant offset to neighbours predicted at constant
 /// velocity, a leader manoeuvre reaches row i only through row i-1's position and velocity

@@ -6,7 +6,7 @@
 
 #include "fnmpc/core/types.hpp"
 
-/// Cooperative mode (issue #17, Compensation::kCooperative): every vehicle publishes, every
+/// Cooperative mode (Compensation::kCooperative): every vehicle publishes, every
 /// control step, the trajectory its NMPC predicts and its disturbance estimate; a follower
 /// predicts a neighbour along that plan, anchored at its own relative estimate, instead of at
 /// constant velocity while the plan is fresh. Fixed-size storage: receiving and predicting

@@ -5,9 +5,9 @@
 
 #include "fnmpc/core/types.hpp"
 
-/// A follower's estimate of a neighbour's collective thrust from its estimated motion (issue
-/// #17 Build item 2: the wake-aware prediction needs the thrust of the neighbour whose wake it
-/// predicts, "estimated from its motion, or shared in cooperative mode").
+/// A follower's estimate of a neighbour's collective thrust from its estimated motion (the
+/// wake-aware prediction, compensation level `wake`, needs the thrust of the neighbour whose wake
+/// it predicts: estimated from its motion, or shared in cooperative mode).
 ///
 /// Why this formula: a multirotor's only large force besides gravity is its collective thrust
 /// along its body z axis, so Newton's second law m a = T R e_z - m g e_z + f gives, with the

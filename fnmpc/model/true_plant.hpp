@@ -6,7 +6,7 @@
 #include "fnmpc/core/serialize.hpp"
 #include "fnmpc/model/vehicle_params.hpp"
 
-/// The true plant of a simulated vehicle (issue #15): the controller keeps its vehicle file,
+/// The true plant of a simulated vehicle: the controller keeps its vehicle file,
 /// the simulator flies parameters drawn around it. Pure functions, no files (the scenario
 /// parser reads the spread, `fnmpc run` writes the drawn plant). See docs/simulator.md,
 /// "Reality", for each spread's justification.

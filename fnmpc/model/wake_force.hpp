@@ -7,12 +7,12 @@
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/model/vehicle_params.hpp"
 
-/// The controller's model of a neighbour's rotor wake (issue #17 item 2, docs/safety.md "The
-/// controllers' OCPs"): the vertical acceleration a vehicle feels at a relative position below
-/// a neighbour of known thrust, smooth and with its analytic gradient, for the follower's
-/// prediction. No dependency on the simulator: the same published models the simulator uses
-/// (docs/simulator.md "Aerodynamic interaction" and "Rotor aerodynamics"), re-derived here in a
-/// smooth form.
+/// The controller's model of a neighbour's rotor wake (compensation level `wake`,
+/// docs/safety.md "The controllers' OCPs"): the vertical acceleration a vehicle feels at a
+/// relative position below a neighbour of known thrust, smooth and with its analytic gradient,
+/// for the follower's prediction. No dependency on the simulator: the same published models the
+/// simulator uses (docs/simulator.md "Aerodynamic interaction" and "Rotor aerodynamics"),
+/// re-derived here in a smooth form.
 namespace fnmpc::model {
 
 /// Constants of the wake model. Jet: round turbulent jet of momentum flux T along the

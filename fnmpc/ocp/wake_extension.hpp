@@ -5,9 +5,9 @@
 #include "fnmpc/model/wake_force.hpp"
 #include "fnmpc/ocp/problem_extensions.hpp"
 
-/// The neighbours' predicted wakes in a follower's prediction (issue #17 item 2, compensation
-/// level `wake`): an extension of a least-squares problem (fnmpc/ocp/problems.hpp contract),
-/// like those of fnmpc/ocp/problem_extensions.hpp.
+/// The neighbours' predicted wakes in a follower's prediction (compensation level `wake`): an
+/// extension of a least-squares problem (fnmpc/ocp/problems.hpp contract), like those of
+/// fnmpc/ocp/problem_extensions.hpp.
 namespace fnmpc::ocp {
 
 /// A model whose transition matrix is the wrapped model's plus the wake's couplings of the

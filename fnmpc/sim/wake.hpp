@@ -8,7 +8,7 @@
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/sim/downwash.hpp"
 
-/// Advected, fluctuating rotor wake (issue #15; docs/simulator.md, "Reality"): the mean
+/// Advected, fluctuating rotor wake (docs/simulator.md "Wakes"): the mean
 /// velocity is the round turbulent jet of DownwashVelocity, evaluated for the state the
 /// upper vehicle had when the air now at the point left its rotors; turbulent fluctuations
 /// scale with the local centreline velocity. No allocation after construction.

@@ -129,8 +129,8 @@ struct CommandTimeoutSettings {
   double land_detect_time = 1.0;  ///< ... for this long -> motors off [s]
 };
 
-/// Aerodynamic reality models (issue #15, docs/simulator.md "Reality"); all off is the ideal
-/// plant of before (pinned by tests/sim/reality_off_test.cpp).
+/// Aerodynamic reality models (docs/simulator.md "Reality"); all off is the ideal plant (pinned
+/// bit for bit by tests/sim/reality_off_test.cpp).
 struct AeroRealitySettings {
   /// Each rotor's thrust in its actual axial inflow (AxialInflowThrustRatio, with the air of
   /// the wind and the other vehicles' wakes), ground effect (GroundEffectRatio) and rotor
@@ -146,7 +146,7 @@ struct AeroRealitySettings {
   WakeTurbulenceSettings wake_turbulence;
 };
 
-/// Sensor and autopilot reality models (issue #15, docs/simulator.md "Reality"); off is the
+/// Sensor and autopilot reality models (docs/simulator.md "Reality"); off is the
 /// ideal sensors of SensorsConfig. Draws come from their own seeded stream.
 struct SensorRealitySettings {
   bool enabled = false;

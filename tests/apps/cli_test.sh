@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: BSD-3-Clause
-# Issue #21: the fnmpc command line refuses bad values and reused folders, tells failure by
+# The fnmpc command line refuses bad values and reused folders, tells failure by
 # its exit code (docs/failure.md), stops cleanly on SIGINT, and `report` answers an
 # incomplete folder with one line. Usage: cli_test.sh FNMPC_BINARY SOURCE_DIR
 set -uo pipefail
@@ -84,7 +84,7 @@ tri=$src/config/scenarios/triangle.yaml
 sed -e "s#\.\./vehicles/#$src/config/vehicles/#" -e "s#\.\./sensors/#$src/config/sensors/#" \
   "$tri" >"$tmp/tri.yaml"
 
-# ---- CLI values (item 10).
+# ---- CLI values.
 expect 2 "--seed -5 refused" -- "$fnmpc" run "$tri" --seed -5 -o "$tmp/a"
 expect 2 "-o '' refused" -- "$fnmpc" run "$tri" -o ''
 for d in 0 -5 nan inf 200; do
@@ -93,7 +93,7 @@ for d in 0 -5 nan inf 200; do
 done
 absent "$tmp/d" "a refused run created its folder"
 
-# ---- Compensation levels (issue #17): an unknown one is refused; the level is recorded in
+# ---- Compensation levels: an unknown one is refused; the level is recorded in
 # summary.json at the top and per run, cooperative mode's link statistics too.
 expect 1 "--compensation bogus refused" -- "$fnmpc" run "$tri" --compensation bogus -o "$tmp/c"
 stderr_has "must be one of none, observer, wake, cooperative" "--compensation bogus lists the levels"
@@ -113,31 +113,31 @@ done
 expect 1 "link.loss_rate 1.5 refused" -- "$fnmpc" run "$tmp/badlink.yaml" --compensation cooperative -o "$tmp/bl"
 stderr_has "link.loss_rate" "the link error names the key"
 
-# ---- Reused folder (item 10).
+# ---- Reused folder.
 mkdir -p "$tmp/used" && echo stale >"$tmp/used/ghost.csv"
 expect 1 "non-empty -o refused without --overwrite" -- "$fnmpc" run "$tri" -o "$tmp/used"
 stderr_has "not empty" "refusal says why"
 [[ -f "$tmp/used/ghost.csv" ]] || { echo "FAIL: refused run touched the folder"; fails=$((fails + 1)); }
 
-# ---- Only regular files (item 6): /dev/zero is refused at once, no bad_alloc.
+# ---- Only regular files: /dev/zero is refused at once, no bad_alloc.
 expect 1 "/dev/zero as scenario refused" -- timeout 20 "$fnmpc" run /dev/zero -o "$tmp/z"
 stderr_has "not a regular file" "/dev/zero refusal"
 expect 1 "/dev/zero as vehicle refused" -- timeout 20 "$fnmpc" check-vehicle /dev/zero
 expect 1 "directory as vehicle refused" -- "$fnmpc" check-vehicle "$src/config"
 stderr_has "is a directory" "directory refusal"
 
-# ---- check-vehicle plausibility (item 7).
+# ---- check-vehicle plausibility.
 sed 's/^mass: 1.37/mass: 1e300/' "$src/config/vehicles/storm-drone-4.yaml" >"$tmp/heavy.yaml"
 expect 1 "check-vehicle mass 1e300 refused" -- "$fnmpc" check-vehicle "$tmp/heavy.yaml"
 stderr_has "key 'mass'" "mass refusal names the key"
 expect 0 "check-vehicle shipped ok" -- "$fnmpc" check-vehicle "$src/config/vehicles/storm-drone-4.yaml"
 
-# ---- Name with a path (item 4): refused at parse time, nothing written outside.
+# ---- Name with a path: refused at parse time, nothing written outside.
 sed 's/^  - name: leader$/  - name: ..\/..\/pwned/' "$tmp/tri.yaml" >"$tmp/pwned.yaml"
 expect 1 "vehicle name with a path refused" -- "$fnmpc" run "$tmp/pwned.yaml" -o "$tmp/p"
 stderr_has "key 'vehicles\[0\].name'" "name refusal names the key"
 
-# ---- report on an incomplete folder (item 5): one line, no traceback.
+# ---- report on an incomplete folder: one line, no traceback.
 mkdir -p "$tmp/empty"
 expect 1 "report on a folder without summary" -- "$fnmpc" report "$tmp/empty"
 if grep -q Traceback "$tmp/err"; then echo "FAIL: report printed a traceback"; fails=$((fails + 1)); fi
@@ -147,23 +147,23 @@ stderr_has "did not complete (interrupted)" "report says why"
 [[ $(wc -l <"$tmp/err") -eq 1 ]] || { echo "FAIL: report printed more than one line"; cat "$tmp/err"; fails=$((fails + 1)); }
 if grep -q Traceback "$tmp/err"; then echo "FAIL: report printed a traceback"; fails=$((fails + 1)); fi
 
-# ---- sysid synth keeps an existing campaign (item 10).
+# ---- sysid synth keeps an existing campaign.
 mkdir -p "$tmp/campaign" && echo "name: mine" >"$tmp/campaign/campaign.yaml"
 expect 1 "sysid synth refuses to overwrite a campaign" -- "$fnmpc" sysid synth "$tmp/campaign"
 file_has "name: mine" "$tmp/campaign/campaign.yaml" "campaign overwritten"
 
-# ---- A run that leaves its envelope exits 3 naming vehicle and reason (item 1).
+# ---- A run that leaves its envelope exits 3 naming vehicle and reason.
 sed 's/^metrics:/envelope: {max_altitude: 0.5}\nmetrics:/' "$tmp/tri.yaml" >"$tmp/env.yaml"
 expect 3 "run leaving its envelope exits 3" -- "$fnmpc" run "$tmp/env.yaml" --duration 20 -q -o "$tmp/env"
 stderr_has "vehicle leader: left the flight envelope" "failure names vehicle and reason"
 file_has '"complete": true' "$tmp/env/summary.json" "summary not complete"
 
-# ---- MuJoCo instability (item 2): a physically absurd but valid gust (1e8 m/s at 4 s; the
+# ---- MuJoCo instability: a physically absurd but valid gust (1e8 m/s at 4 s; the
 # drag of such a wind accelerates a vehicle beyond MuJoCo's 1e10 limit within a step, so
 # MuJoCo warns "Nan, Inf or huge value in QACC/QVEL" and would reset the world). The run
 # stops at that step with exit 4; stderr and summary.json give the time and the state.
 # follower1's relative sensor reaches 2 m only, short of its neighbours at 2.5 m and 3 m: two
-# warnings (item 7), printed and recorded in summary.json.
+# warnings, printed and recorded in summary.json.
 echo "relative: {max_range: 2.0}" >"$tmp/short-range.yaml"
 # (The shipped triangle's own `reality: {}` line is replaced by this block.)
 sed -e '/^reality:/d' -e 's/^metrics:/reality:\n  wake: false\n  wind:\n    discrete_gusts:\n      - {time: 4.0, duration: 1.0, amplitude: [1.0e8, 0.0, 0.0]}\nmetrics:/' \
@@ -185,7 +185,7 @@ file_has '"error": "\[World\] MuJoCo instability' "$tmp/gust/run-01/summary.json
 last_t=$(tail -1 "$tmp/gust/run-01/leader.csv" | cut -d, -f1)
 awk -v t="$last_t" 'BEGIN { exit !(t >= 3.9 && t <= 4.1) }' || { echo "FAIL: leader.csv ends at t = $last_t, expected about 4"; fails=$((fails + 1)); }
 
-# ---- SIGINT (item 10) into a reused folder with --overwrite: emptied first, the run in
+# ---- SIGINT into a reused folder with --overwrite: emptied first, the run in
 # progress stops after the current step, summaries "complete": false, exit 130. (--runs 50:
 # still running after 5 s on any machine.)
 mkdir -p "$tmp/int" && echo stale >"$tmp/int/ghost.csv"
@@ -212,7 +212,7 @@ exits_with $pid 143 "SIGTERM"
 stderr_has "interrupted (signal 15)" "SIGTERM stop says so"
 file_has '"complete": false' "$tmp/term/summary.json" "terminated summary not marked"
 
-# ---- sysid and calibrate (items 9, 10): glog never prints "Logging before
+# ---- sysid and calibrate: glog never prints "Logging before
 # InitGoogleLogging"; Ctrl-C during sysid's plotting stops the command with 130 and a message.
 if "$fnmpc" sysid synth "$tmp/syn" >/dev/null 2>"$tmp/err"; then
   expect 0 "sysid on a synthetic campaign" -- "$fnmpc" sysid "$tmp/syn/campaign.yaml" -o "$tmp/syn/v.yaml" --no-plots

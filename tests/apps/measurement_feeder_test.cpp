@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Issue #18 item 4: the thread that feeds measurements to the controllers while the world
+// The thread that feeds measurements to the controllers while the world
 // steps processes each measurement once, in push order, and TakeRest hands over exactly the
 // ones it has not processed.
 #include "apps/fnmpc/measurement_feeder.hpp"

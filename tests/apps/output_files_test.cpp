@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Issue #21, items 4 and 5: output paths stay inside their folder; a failed write (full disk,
-// here a file size limit) is an error naming the file and the errno text, and nothing
-// half-written is left under the final name.
+// Output paths stay inside their folder; a failed write (full disk, here a file size limit) is
+// an error naming the file and the errno text, and nothing half-written is left under the final
+// name (docs/failure.md "What is written").
 #include "apps/fnmpc/output_files.hpp"
 
 #include <gtest/gtest.h>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Seeded mutation fuzzing of every file parser (issue #21): vehicle, sensors, scenario and
+// Seeded mutation fuzzing of every file parser (docs/failure.md): vehicle, sensors, scenario and
 // campaign YAML, the sysid and calibrate CSVs. Each valid seed file is mutated a fixed number
 // of times (byte flips, deletions, duplications, hostile tokens); every mutant must parse or
 // be rejected with a ConfigError that names the file, the line and the key (YAML; errors about

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Issue #21: every input checked at the boundary, with file, line and key. Each test below
-// failed (no error, a hang, or an error without a place) before the checks were added.
+// Every input checked at the boundary, with file, line and key (docs/failure.md "Input checks
+// and limits"). Each test below fails without its check (no error, a hang, or an error without
+// a place).
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <sys/stat.h>
@@ -65,7 +66,7 @@ std::string FileText(const std::string& path) { return ReadTextFile(path); }
 const std::string kVehicle = std::string(FNMPC_SOURCE_DIR) + "/config/vehicles/storm-drone-4.yaml";
 const std::string kTriangle = "triangle.yaml";
 
-// ---- Item 8: duplicate keys.
+// ---- Duplicate keys.
 TEST(ErrorPlaceTest, SplitsFileLineColumnAndKey) {
   // The first ":<line>:<column>: " ends the file name, which may contain ':' itself.
   const ErrorPlace e = ParseErrorPlace("dir:a/b.yaml:12:3: key 'vehicles[1].mass': must be > 0");
@@ -97,7 +98,7 @@ TEST(InputHardeningTest, DuplicateKeyInANestedMappingIsRejected) {
   EXPECT_NE(e.find("key 'horizon': duplicate key (first at line"), std::string::npos) << e;
 }
 
-// ---- Items 6, 9: only regular files, errno text.
+// ---- Only regular files, errno text.
 TEST(InputHardeningTest, DirectoryIsRefusedAsAFile) {
   const std::string e = [] {
     try {
@@ -153,7 +154,7 @@ TEST(InputHardeningTest, TooLargeFileIsRefused) {
   std::remove(path.c_str());
 }
 
-// ---- Items 4, 9: names are identifiers, UTF-8 checked.
+// ---- Names are identifiers, UTF-8 checked.
 TEST(InputHardeningTest, VehicleNameWithAPathIsRejectedAtParseTime) {
   const std::string e = ScenarioError(
       Replace(ShippedScenarioText(kTriangle), "  - name: leader", "  - name: ../../pwned"));
@@ -179,7 +180,7 @@ TEST(InputHardeningTest, InvalidUtf8IsRejectedWithItsLine) {
   EXPECT_EQ(FindInvalidUtf8("\xc0\xaf"), 0u);  // overlong '/'
 }
 
-// ---- Item 7: nonsense accepted.
+// ---- Nonsense values refused.
 TEST(InputHardeningTest, NanWaypointIsRejected) {
   const std::string e = ScenarioError(
       Replace(ShippedScenarioText(kTriangle), "- [1.5, 0.0, 0.5]", "- [1.5, .nan, 0.5]"));

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Issue #18: `formation:` generates the vehicles; the 10-vehicle wedge it generates is the
+// `formation:` generates the vehicles; the 10-vehicle wedge it generates is the
 // hand-written one of config/scenarios/stress/wedge10-fast.yaml, and bad blocks name the key.
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -55,7 +55,7 @@ std::string ErrorOf(const std::string& block) {
 
 // The deep formations of config/scenarios/scale/ ship with the neighbours' plans (without them
 // they are not string-stable, docs/results.md "Scale") and with reality on, like every other
-// scenario a user flies by default (issue #15).
+// scenario a user flies by default.
 TEST(ScenarioFormationYamlTest, ScaleScenariosFlyCooperativelyWithRealityOn) {
   for (const char* name : {"wedge28.yaml", "wedge28-fast.yaml", "grid100.yaml"}) {
     const ScenarioConfig s =

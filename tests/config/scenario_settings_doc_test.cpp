@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// One definition of each setting (issue #16): docs/scenarios.md's settings table and the
+// One definition of each setting: docs/scenarios.md's settings table and the
 // settings structs' Serialize cannot drift apart, and every key they define is read from YAML.
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
@@ -199,8 +199,8 @@ TEST(ScenarioSettingsDocTest, EverySensorsKeyIsReadFromYaml) {
   EXPECT_THROW(ParseSensors(YamlMap::LoadString("imu: {accel_nosie: 1}\n", "s.yaml")), ConfigError);
 }
 
-// The settings the scenario could not set before issue #16: QP settings, soft-bound weights
-// and the unconstrained shortcut; their errors name the key.
+// The QP settings, soft-bound weights and the unconstrained shortcut are settable from the
+// scenario; their errors name the key.
 TEST(ScenarioSettingsDocTest, QpSoftBoundsAndShortcutAreSettable) {
   std::string text = test::ShippedScenarioText("triangle.yaml");
   auto with = [&text](const std::string& controller) {
@@ -239,8 +239,8 @@ TEST(ScenarioSettingsDocTest, QpSoftBoundsAndShortcutAreSettable) {
   }
 }
 
-// controller.compensation (issue #17): a name of the list; the planned levels are refused as
-// not implemented yet, with the file, line and key.
+// controller.compensation: a name of the list; any other name (a wrong case too) is refused
+// with the file, line and key.
 TEST(ScenarioSettingsDocTest, CompensationAcceptsImplementedLevelsOnly) {
   const std::string text = test::ShippedScenarioText("triangle.yaml");
   auto with = [&text](const std::string& level) {

@@ -92,7 +92,7 @@ TEST(VehicleYamlTest, MistypedValueNamesLineAndKey) {
 TEST(VehicleYamlTest, NonPhysicalValueRejected) {
   std::string text = ShippedText();
   text.replace(text.find("mass: 1.37"), 10, "mass: -1.0");
-  // Named by its key and line (issue #21), no longer "[VehicleParams] mass must be ...".
+  // Named by its file, line and key, not as "[VehicleParams] mass must be ...".
   EXPECT_NE(ErrorOf(text).find("v.yaml:3:7: key 'mass': must be > 0"), std::string::npos)
       << ErrorOf(text);
 }

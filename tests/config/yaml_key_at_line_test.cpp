@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// The key region of a line of YAML text (issue #21: syntax and structure errors name a key).
+// The key region of a line of YAML text (syntax and structure errors name a key: docs/failure.md).
 #include "fnmpc/config/yaml_key_at_line.hpp"
 
 #include <gtest/gtest.h>

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Offset-free attitude (issue 17 Build item 1): the attitude offset estimate of a plant whose
-// attitude loop settles at k (ref + b) converges to k b, and the closed loop of the observer
-// level no longer holds the position offset such a bias leaves.
+// Offset-free attitude: the attitude offset estimate of a plant whose attitude loop settles at
+// k (ref + b) converges to k b, and the closed loop of the observer level removes the position
+// offset such a bias leaves at level `none`.
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Controller compensation levels (issue 17): `none` is the controller without the
+// Controller compensation levels: `none` is the controller without the
 // disturbance estimate, `observer` removes the steady offset a constant external force
-// leaves; `wake` predicts a neighbour's wake; the planned level is refused.
+// leaves; `wake` predicts a neighbour's wake; an unknown name is refused.
 #include <gtest/gtest.h>
 
 #include <algorithm>

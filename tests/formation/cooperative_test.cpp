@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Cooperative mode (issue #17, Compensation::kCooperative): a neighbour's plan anchored at
+// Cooperative mode (Compensation::kCooperative): a neighbour's plan anchored at
 // the receiver's relative estimate and shifted by its age, the fallback to constant velocity
 // when it is late or lost (no allocation: safety_test.cpp, with the malloc counter).
 #include <gtest/gtest.h>

@@ -1,9 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// The neighbour thrust estimate of the wake level (issue #17 Build item 2,
-// neighbour_thrust.hpp): the formula and its bounds, and the chain the follower runs every
-// control step (NeighbourEkf with its two modes -> filtered derivative of the velocity ->
-// mixed mean acceleration -> m ||a + g e_z||) on noisy relative measurements of a neighbour
-// that accelerates and of one that hovers.
+// The neighbour thrust estimate of the wake level (neighbour_thrust.hpp): the formula and its
+// bounds, and the chain the follower runs every control step (NeighbourEkf with its two modes ->
+// filtered derivative of the velocity -> mixed mean acceleration -> m ||a + g e_z||) on noisy
+// relative measurements of a neighbour that accelerates and of one that hovers.
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// String stability down the graph (issue #18): a leader and a chain of followers, each tied
-// to the one ahead only, flown on the NMPC's own model with exact estimates. With the
-// constant-velocity neighbour prediction the formation error grows from link to link; with the
-// decaying-acceleration prediction (neighbour_acceleration.hpp) it grows much less. Also the
-// estimate and the prediction formulas on their own.
+// String stability down the graph (docs/results.md "Scale"): a leader and a chain of
+// followers, each tied to the one ahead only, flown on the NMPC's own model with exact
+// estimates. With the constant-velocity neighbour prediction the formation error grows from
+// link to link; with the decaying-acceleration prediction (neighbour_acceleration.hpp) it grows
+// much less. Also the estimate and the prediction formulas on their own.
 #include <gtest/gtest.h>
 
 #include <algorithm>

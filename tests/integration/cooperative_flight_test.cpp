@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Issue #17, cooperative mode: losing every message degrades to `wake` exactly (bit for bit,
+// Cooperative mode: losing every message degrades to `wake` exactly (bit for bit,
 // the whole closed loop: controllers, estimators, sensors, world with reality on), and with
 // the link up the plans are delivered and change the flight.
 #include <gtest/gtest.h>

@@ -230,7 +230,7 @@ TEST(FaultFlightTest, EveryStepFailingHandsEveryVehicleToTheFailsafe) {
     EXPECT_EQ(j["failsafe_reason"], "reinitialisation_failed") << j.dump(2);
     EXPECT_TRUE(j["motors_off_at_end"].get<bool>()) << j.dump(2);
     // and each handover is a failure of the run (`fnmpc run` exits 3), naming the vehicle
-    // and the reason (issue #21: a failsafe used to leave the run a success).
+    // and the reason (docs/failure.md "Exit codes": a failsafe must not leave the run a success).
     bool reported = false;
     for (const auto& f : s["failures"]) {
       reported = reported || (f["vehicle"] == v && f["reason"].get<std::string>().find(

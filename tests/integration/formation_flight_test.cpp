@@ -37,7 +37,7 @@ TEST(FormationFlightTest, ShortTriangleKeepsFormationAndLands) {
   EXPECT_EQ(s["solver_failures"].get<long>(), 0);
   EXPECT_EQ(s["guarded_commands"].get<long>(), 0);
   EXPECT_TRUE(s["landed_safely"].get<bool>()) << s.dump(2);
-  // and nothing counts as a failure (issue #21: envelope, take-off, landing, failsafe).
+  // and nothing counts as a failure (docs/failure.md: envelope, take-off, landing, failsafe).
   EXPECT_TRUE(s["complete"].get<bool>());
   EXPECT_TRUE(s["failures"].empty()) << s["failures"].dump(2);
   EXPECT_GT(s["min_separation_m"].get<double>(), 1.5);

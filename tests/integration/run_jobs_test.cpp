@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Issue #18 item 4: `fnmpc run --runs N --jobs J` flies runs in parallel threads and writes
+// `fnmpc run --runs N --jobs J` flies runs in parallel threads and writes
 // the same run folder as --jobs 1 (each run depends only on its seed), wall-clock solver
 // timings aside.
 #include <gtest/gtest.h>

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Issue #21, item 1 and 10: a run's summary tells the truth. Before, these runs reported no
-// failure at all (a vehicle outside any envelope, vehicles still in the air at the end, a
-// vehicle that never took off) and a stopped run left nothing marking it incomplete.
+// A run's summary tells the truth (docs/failure.md): a vehicle outside any envelope, vehicles
+// still in the air at the end and a vehicle that never took off are failures of the run, and a
+// stopped run is marked incomplete.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -81,7 +81,7 @@ TEST(RunOutcomeTest, VehiclesStillFlyingAtTheEndOrNeverAirborneFail) {
     EXPECT_NE(Reasons(flying, name).find("not landed safely at the end"), std::string::npos)
         << flying["failures"].dump(2);
   }
-  sc.thrust_min = 0.0;  // [0, 1] N: the bounds of the issue's report
+  sc.thrust_min = 0.0;  // [0, 1] N: too little thrust to take off
   sc.thrust_max = 1.0;
   const json grounded = RunScenario(sc, o, Dir("grounded"));
   // Then the failures say so: airborne at the end, never took off.

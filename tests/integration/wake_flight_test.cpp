@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Issue #15, "How it is checked": in the shipped follower-in-the-wake scenario with reality on
-// (its default), the follower's aero_fz in the formation window is a downward push that
-// fluctuates (standard deviation at least 10 % of its mean magnitude), and its lateral
-// components are non-zero. The whole closed loop: controllers, estimators, sensors, world.
+// The wake as the follower feels it (docs/simulator.md "Wakes"): in the shipped
+// follower-in-the-wake scenario with reality on (its default), the follower's aero_fz in the
+// formation window is a downward push that fluctuates (standard deviation at least 10 % of its
+// mean magnitude), and its lateral components are non-zero. The whole closed loop:
+// controllers, estimators, sensors, world.
 #include <gtest/gtest.h>
 #include <unistd.h>
 

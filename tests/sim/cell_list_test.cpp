@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Relative sensing through the cell list (issue #18): the grid's candidates are a superset of
+// Relative sensing through the cell list: the grid's candidates are a superset of
 // the points in range, and a world sensing through it delivers exactly the measurements of
 // the all-pairs test.
 #include <gtest/gtest.h>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// FreeJointForce (issue #18): the closed-form generalised force of a free joint equals what
+// FreeJointForce: the closed-form generalised force of a free joint equals what
 // MuJoCo's own xfrc_applied path (mj_applyFT through the body Jacobians) gives, including a
 // centre of mass off the body origin, so the simulator may write qfrc_applied directly.
 #include "fnmpc/sim/free_joint_force.hpp"

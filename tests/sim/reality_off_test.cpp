@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Pins the ideal plant ("reality off", issue #15): a fixed command sequence through a world
-// with every model of the simulator as it was before the reality models (three vehicles,
-// all sensors with noise, dropouts and latency, battery sag, round-jet downwash, constant
-// wind with Gauss-Markov gusts, attitude, throttle and direct-throttle commands) must give
-// the recorded trajectory and measurement stream bit for bit. The recording
+// Pins the ideal plant ("reality off", docs/simulator.md "Reality"): a fixed command sequence
+// through a world with every model of the simulator as it was before the reality models (three
+// vehicles, all sensors with noise, dropouts and latency, battery sag, round-jet downwash,
+// constant wind with Gauss-Markov gusts, attitude, throttle and direct-throttle commands) must
+// give the recorded trajectory and measurement stream bit for bit. The recording
 // (data/reality_off_trajectory.csv) was written by this test on 92c961d, before any
 // reality model existed:
 //   FNMPC_WRITE_REALITY_OFF_GOLDEN=tests/sim/data/reality_off_trajectory.csv sim_test

@@ -136,7 +136,7 @@ namespace fnmpc::sysid {
 namespace {
 
 TEST(UnwrapAnglesTest, ContinuousAcrossPiAndFiniteForAbsurdValues) {
-  // Given a yaw that crosses +-pi and one absurd sample (#21: the old loop never ended),
+  // Given a yaw that crosses +-pi and one absurd sample (a loop stepping by 2 pi never ends),
   const std::vector<double> a{3.0, -3.0, -2.9, 1e17, 3.1};
   // When unwrapped, Then the crossing is continuous and every value is finite.
   const auto u = UnwrapAngles(a);

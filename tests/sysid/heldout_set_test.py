@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: BSD-3-Clause
-"""Integration test on a held-out identification campaign (issue #14).
+"""Integration test on a held-out identification campaign (docs/sysid.md).
 
     /usr/bin/python3 heldout_set_test.py FNMPC SYSID_DEV_DIR SET
 

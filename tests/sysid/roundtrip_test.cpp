@@ -224,7 +224,7 @@ TEST_F(RoundTripTest, MissingFilesFailOnlyTheirStages) {
 }
 
 TEST_F(RoundTripTest, OutputPathReachesThePlotterWithoutAShell) {
-  // Given an output name with quotes and a command substitution (#21),
+  // Given an output name with quotes and a command substitution,
   ASSERT_EQ(synth_rc_, 0);
   const fs::path work = dir_ / "inject";
   fs::remove_all(work);
@@ -251,13 +251,14 @@ TEST_F(RoundTripTest, OutputPathReachesThePlotterWithoutAShell) {
 }
 
 TEST_F(RoundTripTest, HugeYawDoesNotHang) {
-  // Given a yaw of 1e17 rad in one sample of the attitude steps and of the flight (#21),
+  // Given a yaw of 1e17 rad in one sample of the attitude steps and of the flight,
   ASSERT_EQ(synth_rc_, 0);
   const fs::path c = CopyCampaign(dir_ / "c", dir_ / "hugeyaw");
   EditLine(c / "attitude_steps.csv", 40,
            [](const std::string& l) { return SetCell(l, 6, "1e17"); });
   EditLine(c / "flight.csv", 40, [](const std::string& l) { return SetCell(l, 9, "-3e18"); });
-  // When identified and calibrated (each bounded by `timeout`, the old loop never ended),
+  // When identified and calibrated (each bounded by `timeout`: an angle unwrap stepping by
+  // 2 pi would never end),
   const int rc = RunApp("sysid '" + (c / "campaign.yaml").string() + "' -o '" +
                             (c / "vehicle.yaml").string() + "' --no-plots",
                         c / "sysid.log", 120);

@@ -147,7 +147,7 @@ int Convert(const std::string& bag_file, const std::string& scenario_file, const
       }
       const fnmpc_ros::SolverDiagnostics* dg = nullptr;
       if (auto it = d.diagnostics.find(stamp); it != d.diagnostics.end()) dg = &it->second;
-      // Each vehicle's own window, as `fnmpc run` (issue #21): up to its own landing.
+      // Each vehicle's own window, as in `fnmpc run`: up to its own landing.
       const bool window = t >= sc.trajectory_start && t < config::LandingTime(sc, i);
       const bool steady =
           window && trajectory.TimeSinceStop(t - sc.trajectory_start) >= sc.metrics.settle_time;
