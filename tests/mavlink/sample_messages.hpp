@@ -68,7 +68,7 @@ class RandomFiller {
 inline Message RandomMessage(std::size_t index, std::mt19937* rng, double zero_probability = 0.1) {
   Message message;
   [&]<std::size_t... I>(std::index_sequence<I...>) {
-    ((index == I ? (message.template emplace<I>(), true) : false), ...);
+    ((index == I ? void(message.template emplace<I>()) : void()), ...);
   }
   (std::make_index_sequence<kNumMessages>());
   RandomFiller filler(rng, zero_probability);
