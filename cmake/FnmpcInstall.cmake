@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: BSD-3-Clause
 # `cmake --install <build> --prefix <prefix>`: the algorithm layers that need nothing but
-# Eigen (core, model, qp, ocp, rti, estimation, formation) as the CMake package `fnmpc`:
+# Eigen (core, mavlink, model, qp, ocp, rti, estimation, formation) as the CMake package `fnmpc`:
 #   <prefix>/include/fnmpc/<layer>/*.hpp
 #   <prefix>/lib/libfnmpc_<layer>.a
 #   <prefix>/lib/cmake/fnmpc/{fnmpcConfig,fnmpcConfigVersion,fnmpcTargets}.cmake
@@ -10,7 +10,7 @@
 include(CMakePackageConfigHelpers)
 include(GNUInstallDirs)
 
-set(FNMPC_INSTALLED_LAYERS core model qp ocp rti estimation formation)
+set(FNMPC_INSTALLED_LAYERS core mavlink model qp ocp rti estimation formation)
 set(fnmpc_install_targets "")
 foreach(layer IN LISTS FNMPC_INSTALLED_LAYERS)
   if(NOT TARGET fnmpc_${layer})
