@@ -3,9 +3,11 @@
 
 #include <array>
 #include <cstdint>
+#include <cstdio>
 #include <limits>
 #include <random>
 #include <span>
+#include <string>
 #include <type_traits>
 #include <utility>
 #include <vector>
@@ -18,6 +20,17 @@
 /// drawn from a seeded std::mt19937, with the types' extremes and zeros mixed in (zeros at
 /// the end of a payload exercise truncation). Floats are finite.
 namespace fnmpc::mavlink::testing {
+
+/// Lower-case hex of bytes ("0a1b..."), for digests, keys and frames in test messages.
+inline std::string Hex(std::span<const std::uint8_t> bytes) {
+  std::string s;
+  char b[3];
+  for (const std::uint8_t x : bytes) {
+    std::snprintf(b, sizeof(b), "%02x", x);
+    s += b;
+  }
+  return s;
+}
 
 class RandomFiller {
  public:

@@ -9,18 +9,12 @@
 #include <string_view>
 #include <vector>
 
+#include "tests/mavlink/sample_messages.hpp"
+
 namespace fnmpc::mavlink {
 namespace {
 
-std::string Hex(const Sha256Digest& d) {
-  std::string s;
-  char b[3];
-  for (const std::uint8_t x : d) {
-    std::snprintf(b, sizeof(b), "%02x", x);
-    s += b;
-  }
-  return s;
-}
+using testing::Hex;
 
 std::span<const std::uint8_t> Bytes(std::string_view s) {
   return {reinterpret_cast<const std::uint8_t*>(s.data()), s.size()};

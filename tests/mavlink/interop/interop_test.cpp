@@ -33,6 +33,7 @@ namespace {
 
 using nlohmann::json;
 using testing::EncodeToVector;
+using testing::Hex;
 using testing::RandomMessage;
 using testing::SamePayload;
 using testing::TestKey;
@@ -284,28 +285,10 @@ class InteropTest : public ::testing::Test {
     return s.str();
   }
 
-  static std::string KeyHex() {
-    std::string s;
-    char b[3];
-    for (const std::uint8_t x : TestKey()) {
-      std::snprintf(b, sizeof(b), "%02x", x);
-      s += b;
-    }
-    return s;
-  }
+  static std::string KeyHex() { return Hex(TestKey()); }
 
   std::filesystem::path dir_;
 };
-
-std::string Hex(std::span<const std::uint8_t> bytes) {
-  std::string s;
-  char b[3];
-  for (const std::uint8_t x : bytes) {
-    std::snprintf(b, sizeof(b), "%02x", x);
-    s += b;
-  }
-  return s;
-}
 
 TEST_F(InteropTest, NodeMavlinkDecodesOurFrames) {
   // Given our frames of every case in one file
