@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include "fnmpc/core/eigen_abi.hpp"
 #include "fnmpc/core/sin_cos.hpp"
@@ -51,6 +52,13 @@ Eigen::Matrix<S, 3, 3> RotationZyx(const S& phi, const S& theta, const S& psi) {
   ry << cos(theta), S(0), sin(theta), S(0), S(1), S(0), -sin(theta), S(0), cos(theta);
   rx << S(1), S(0), S(0), S(0), cos(phi), -sin(phi), S(0), sin(phi), cos(phi);
   return rz * ry * rx;
+}
+
+/// ZYX Euler angles (roll phi, pitch theta, yaw psi) of a rotation matrix R = Rz(psi) Ry(theta)
+/// Rx(phi) [rad]; pitch in [-pi/2, pi/2].
+inline Eigen::Vector3d EulerZyx(const Eigen::Matrix3d& r) {
+  return {std::atan2(r(2, 1), r(2, 2)), -std::asin(std::clamp(r(2, 0), -1.0, 1.0)),
+          std::atan2(r(1, 0), r(0, 0))};
 }
 
 /// Rotation about z by psi (the yaw-only "control frame" {c} of the reference work).

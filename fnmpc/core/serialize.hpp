@@ -4,7 +4,9 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <stdexcept>
 #include <string>
+#include <type_traits>
 
 /// One definition of each setting: a settings struct lists its fields once, in
 ///
@@ -236,5 +238,45 @@ struct RangeLimit {
     return r;
   }
 };
+
+/// Checks a settings struct's numeric fields against their Serialize limits (for structs built
+/// in code, not read from a file): throws std::invalid_argument "[<what>] <key> <rule>" at the
+/// first field a limit rejects. Choices, ranges and non-numeric fields are not checked here.
+class LimitChecker {
+ public:
+  explicit LimitChecker(const char* what) : what_(what) {}
+  template <class T>
+  void Visit(const char* key, T* value, const Limit& limit, const char* /*doc*/) {
+    if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
+      const std::string why = limit.Check(static_cast<double>(*value));
+      if (!why.empty()) {
+        throw std::invalid_argument(std::string("[") + what_ + "] " + prefix_ + key + " " + why);
+      }
+    }
+  }
+  template <class S>
+  void Nested(const char* key, S* settings) {
+    const std::string outer = prefix_;
+    prefix_ += std::string(key) + ".";
+    settings->Serialize(this);
+    prefix_ = outer;
+  }
+  template <class E, class C>
+  void VisitChoice(const char* /*key*/, E* /*value*/, const C& /*choice*/, const char* /*doc*/) {}
+  template <class R>
+  void VisitRange(const char* /*key*/, double* /*lo*/, double* /*hi*/, const R& /*limit*/,
+                  const char* /*doc*/) {}
+
+ private:
+  const char* what_;
+  std::string prefix_;
+};
+
+/// Runs LimitChecker over `settings`.
+template <class S>
+void CheckLimits(S& settings, const char* what) {
+  LimitChecker checker(what);
+  settings.Serialize(&checker);
+}
 
 }  // namespace fnmpc

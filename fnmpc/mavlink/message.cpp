@@ -9,13 +9,23 @@
 namespace fnmpc::mavlink {
 namespace {
 
+template <class M>
+constexpr std::string_view DialectOf() {
+  if constexpr (requires { M::kDialect; }) {
+    return M::kDialect;
+  } else {
+    return "common";
+  }
+}
+
 template <std::size_t... I>
 constexpr std::array<MessageInfo, kNumMessages> MakeTable(std::index_sequence<I...>) {
   return {MessageInfo{std::variant_alternative_t<I, Message>::kId,
                       std::variant_alternative_t<I, Message>::kName,
                       std::variant_alternative_t<I, Message>::kCrcExtra,
                       std::variant_alternative_t<I, Message>::kMinLength,
-                      std::variant_alternative_t<I, Message>::kMaxLength, I}...};
+                      std::variant_alternative_t<I, Message>::kMaxLength, I,
+                      DialectOf<std::variant_alternative_t<I, Message>>()}...};
 }
 
 constexpr std::array<MessageInfo, kNumMessages> kTable =

@@ -17,7 +17,7 @@ namespace fnmpc::mavlink {
 /// One of the supported messages.
 using Message = std::variant<Heartbeat, SysStatus, BatteryStatus, Attitude, AttitudeQuaternion,
                              LocalPositionNed, Odometry, HighresImu, SetAttitudeTarget,
-                             AttitudeTarget, CommandLong, CommandAck>;
+                             AttitudeTarget, CommandLong, CommandAck, FnmpcRelativeObservation>;
 
 /// Number of supported messages.
 inline constexpr std::size_t kNumMessages = std::variant_size_v<Message>;
@@ -30,6 +30,8 @@ struct MessageInfo {
   std::size_t min_length = 0;     ///< base payload length [bytes]
   std::size_t max_length = 0;     ///< payload length with extensions [bytes]
   std::size_t variant_index = 0;  ///< index of the struct in Message
+  /// "common" (common.xml) or the dialect a struct states as kDialect ("fnmpc").
+  std::string_view dialect = "common";
 };
 
 /// The supported messages, in the order of Message's alternatives.

@@ -470,4 +470,39 @@ struct CommandAck {
   friend bool operator==(const CommandAck&, const CommandAck&) = default;
 };
 
+/// FNMPC_RELATIVE_OBSERVATION (53100), fnmpc's own dialect: one vehicle seen by the relative
+/// sensor of the sending vehicle (range, bearing, elevation and relative yaw, as
+/// fnmpc::RelativeObservation). No common.xml message carries such an observation; it is
+/// what the simulator's MAVLink endpoint sends for the relative sensor (docs/autopilot.md).
+/// Angles are in fnmpc's frames, not MAVLink's: the offset d_B is in the observer's FLU body
+/// frame, bearing = atan2(d_B.y, d_B.x), elevation = asin(d_B.z / range), relative yaw
+/// counter-clockwise positive.
+struct FnmpcRelativeObservation {
+  static constexpr std::uint32_t kId = 53100;
+  static constexpr std::string_view kName = "FNMPC_RELATIVE_OBSERVATION";
+  static constexpr std::string_view kDialect = "fnmpc";
+  static constexpr std::uint8_t kCrcExtra = 135;
+  static constexpr std::size_t kMinLength = 25;
+  static constexpr std::size_t kMaxLength = 25;
+
+  std::uint64_t time_usec{};     ///< time of validity [us] (the sender's clock)
+  float range{};                 ///< [m]
+  float bearing{};               ///< [rad]
+  float elevation{};             ///< [rad]
+  float relative_yaw{};          ///< yaw of the target minus the observer's [rad]
+  std::uint8_t target_system{};  ///< system id of the observed vehicle
+
+  template <class Self, class V>
+  static constexpr void VisitFields(Self& m, V& v) {
+    v.Field("time_usec", m.time_usec);
+    v.Field("range", m.range);
+    v.Field("bearing", m.bearing);
+    v.Field("elevation", m.elevation);
+    v.Field("relative_yaw", m.relative_yaw);
+    v.Field("target_system", m.target_system);
+  }
+  friend bool operator==(const FnmpcRelativeObservation&,
+                         const FnmpcRelativeObservation&) = default;
+};
+
 }  // namespace fnmpc::mavlink

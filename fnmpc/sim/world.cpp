@@ -81,10 +81,7 @@ const SensorSpec& SpecOf(const SensorsConfig& c, int kind) {
   return c.relative;
 }
 
-Vec3 EulerOf(const Mat3& r) {
-  return {std::atan2(r(2, 1), r(2, 2)), -std::asin(std::clamp(r(2, 0), -1.0, 1.0)),
-          std::atan2(r(1, 0), r(0, 0))};
-}
+Vec3 EulerOf(const Mat3& r) { return EulerZyx(r); }
 
 /// Thrust of one rotor [N] at steady state for a throttle, by Newton warm-started at
 /// *guess with the robust bracketing inverse as fallback. Below the idle throttle

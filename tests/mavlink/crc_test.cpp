@@ -44,6 +44,9 @@ TEST(CrcTest, CrcExtraFromFieldListsMatchesCommonXml) {
   EXPECT_EQ(ComputeCrcExtra<AttitudeTarget>(), 22);
   EXPECT_EQ(ComputeCrcExtra<CommandLong>(), 152);
   EXPECT_EQ(ComputeCrcExtra<CommandAck>(), 143);
+  // Our dialect's message: its CRC_EXTRA from "FNMPC_RELATIVE_OBSERVATION uint64_t time_usec
+  // float range float bearing float elevation float relative_yaw uint8_t target_system ".
+  EXPECT_EQ(ComputeCrcExtra<FnmpcRelativeObservation>(), 135);
   for (const MessageInfo& info : SupportedMessages()) {
     EXPECT_LE(info.min_length, info.max_length) << info.name;
   }

@@ -30,7 +30,8 @@ TEST(MessagesTest, TableListsEveryMessageWithItsConstants) {
                                                                        {82, 39, 51},
                                                                        {83, 37, 37},
                                                                        {76, 33, 33},
-                                                                       {77, 3, 10}}};
+                                                                       {77, 3, 10},
+                                                                       {53100, 25, 25}}};
   ASSERT_EQ(SupportedMessages().size(), kNumMessages);
   for (std::size_t i = 0; i < kNumMessages; ++i) {
     const MessageInfo& info = SupportedMessages()[i];
@@ -39,6 +40,7 @@ TEST(MessagesTest, TableListsEveryMessageWithItsConstants) {
     EXPECT_EQ(info.max_length, expected[i][2]) << info.name;
     EXPECT_EQ(info.variant_index, i);
     EXPECT_EQ(FindMessageInfo(info.id), &info);
+    EXPECT_EQ(info.dialect, info.id == 53100 ? "fnmpc" : "common") << info.name;
   }
   EXPECT_EQ(FindMessageInfo(24), nullptr);  // GPS_RAW_INT: not supported
   EXPECT_EQ(FindMessageInfo(1U << 23), nullptr);

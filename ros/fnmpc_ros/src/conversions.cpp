@@ -33,9 +33,7 @@ geometry_msgs::Quaternion EulerToQuaternion(const Vec3& e) {
 
 Vec3 QuaternionToEuler(const geometry_msgs::Quaternion& m) {
   const Mat3 r = Eigen::Quaterniond(m.w, m.x, m.y, m.z).normalized().toRotationMatrix();
-  // ZYX: R = Rz(psi) Ry(theta) Rx(phi).
-  return Vec3(std::atan2(r(2, 1), r(2, 2)), -std::asin(std::clamp(r(2, 0), -1.0, 1.0)),
-              std::atan2(r(1, 0), r(0, 0)));
+  return EulerZyx(r);
 }
 
 namespace {

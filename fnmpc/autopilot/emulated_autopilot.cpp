@@ -1,0 +1,154 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "fnmpc/autopilot/emulated_autopilot.hpp"
+
+#include <cmath>
+#include <variant>
+
+namespace fnmpc::autopilot {
+
+std::string_view ToString(EmulatorEvent event) {
+  switch (event) {
+    case EmulatorEvent::kNone:
+      return "none";
+    case EmulatorEvent::kModeChanged:
+      return "mode_changed";
+    case EmulatorEvent::kModeRejected:
+      return "mode_rejected";
+    case EmulatorEvent::kArmed:
+      return "armed";
+    case EmulatorEvent::kArmRejected:
+      return "arm_rejected";
+    case EmulatorEvent::kDisarmed:
+      return "disarmed";
+    case EmulatorEvent::kSetpointLost:
+      return "setpoint_lost";
+    case EmulatorEvent::kUnknownCommand:
+      return "unknown_command";
+  }
+  return "?";
+}
+
+EmulatedAutopilot::EmulatedAutopilot(const EmulatedAutopilotSettings& settings)
+    : settings_(settings) {
+  CheckLimits(settings_, "EmulatedAutopilotSettings");
+}
+
+void EmulatedAutopilot::Note(EmulatorEvent e, double now) {
+  event_ = e;
+  event_time_ = now;
+}
+
+EmulatorEvent EmulatedAutopilot::TakeEvent(double* time) {
+  const EmulatorEvent e = event_;
+  if (time != nullptr) *time = event_time_;
+  event_ = EmulatorEvent::kNone;
+  return e;
+}
+
+bool EmulatedAutopilot::StreamAlive(double now) const {
+  return std::isfinite(setpoint_time_) && now - setpoint_time_ <= 1.0 / settings_.min_setpoint_rate;
+}
+
+void EmulatedAutopilot::Ack(const mavlink::Frame& frame, std::uint16_t command, std::uint8_t result,
+                            Outbox* out) {
+  mavlink::CommandAck ack;
+  ack.command = command;
+  ack.result = result;
+  ack.target_system = frame.header.system_id;
+  ack.target_component = frame.header.component_id;
+  out->Push(ack);
+}
+
+void EmulatedAutopilot::OnFrame(const mavlink::Frame& frame, double now, Outbox* out) {
+  if (const auto* sp = std::get_if<mavlink::SetAttitudeTarget>(&frame.message)) {
+    if (sp->target_system != settings_.system_id) return;
+    if (!StreamAlive(now)) stream_start_ = now;
+    setpoint_ = FromSetAttitudeTarget(*sp);
+    setpoint_time_ = now;
+    return;
+  }
+  const auto* cmd = std::get_if<mavlink::CommandLong>(&frame.message);
+  if (cmd == nullptr || cmd->target_system != settings_.system_id) return;
+  if (cmd->command == mav::kCmdDoSetMode) {
+    const FlightMode want =
+        ModeOf(settings_.autopilot, SetModeParams{cmd->param1, cmd->param2, cmd->param3});
+    bool ok = want != FlightMode::kOther && !failsafe_;
+    // PX4 enters OFFBOARD only with a setpoint stream already running.
+    if (ok && want == FlightMode::kOffboard && settings_.autopilot == AutopilotKind::kPx4) {
+      ok = StreamAlive(now) && now - stream_start_ >= settings_.offboard_warmup - 1e-9;
+    }
+    if (ok) {
+      mode_ = want;
+      Note(EmulatorEvent::kModeChanged, now);
+    } else {
+      Note(EmulatorEvent::kModeRejected, now);
+    }
+    Ack(frame, cmd->command,
+        ok ? mav::kResultAccepted
+           : (failsafe_ ? mav::kResultDenied : mav::kResultTemporarilyRejected),
+        out);
+    return;
+  }
+  if (cmd->command == mav::kCmdComponentArmDisarm) {
+    if (cmd->param1 == 0.0F) {
+      armed_ = false;
+      Note(EmulatorEvent::kDisarmed, now);
+      Ack(frame, cmd->command, mav::kResultAccepted, out);
+      return;
+    }
+    bool ok = mode_ == FlightMode::kOffboard && !failsafe_ && StreamAlive(now);
+    if (settings_.autopilot == AutopilotKind::kArduPilot && (settings_.guid_options & 8) == 0) {
+      ok = false;  // thrust would be read as a climb rate (docs/autopilot.md)
+    }
+    if (ok) {
+      armed_ = true;
+      Note(EmulatorEvent::kArmed, now);
+    } else {
+      Note(EmulatorEvent::kArmRejected, now);
+    }
+    Ack(frame, cmd->command, ok ? mav::kResultAccepted : mav::kResultDenied, out);
+    return;
+  }
+  Note(EmulatorEvent::kUnknownCommand, now);
+  Ack(frame, cmd->command, mav::kResultUnsupported, out);
+}
+
+void EmulatedAutopilot::Step(double now, Outbox* out) {
+  if (armed_ && mode_ == FlightMode::kOffboard && !failsafe_ &&
+      !(now - setpoint_time_ <= settings_.setpoint_timeout)) {
+    failsafe_ = true;
+    failsafe_time_ = now;
+    mode_ = FlightMode::kLand;
+    Note(EmulatorEvent::kSetpointLost, now);
+  }
+  if (!(now - last_heartbeat_ < settings_.heartbeat_period)) {
+    mavlink::Heartbeat hb;
+    hb.custom_mode = CustomMode(settings_.autopilot, mode_);
+    hb.type = mav::kTypeQuadrotor;
+    hb.autopilot = settings_.autopilot == AutopilotKind::kPx4 ? mav::kAutopilotPx4
+                                                              : mav::kAutopilotArduPilotMega;
+    hb.base_mode = static_cast<std::uint8_t>(mav::kModeFlagCustomModeEnabled |
+                                             (armed_ ? mav::kModeFlagSafetyArmed : 0));
+    hb.system_status =
+        failsafe_ ? mav::kStateCritical : (armed_ ? mav::kStateActive : mav::kStateStandby);
+    hb.mavlink_version = 3;
+    out->Push(hb);
+    last_heartbeat_ = now;
+  }
+}
+
+AttitudeSetpoint EmulatedAutopilot::Flying(double now) const {
+  if (!armed_ || failsafe_ || mode_ != FlightMode::kOffboard ||
+      !(now - setpoint_time_ <= settings_.setpoint_timeout)) {
+    return {};
+  }
+  return setpoint_;
+}
+
+void EmulatedAutopilot::Disarm(double now) {
+  if (!armed_) return;
+  armed_ = false;
+  Note(EmulatorEvent::kDisarmed, now);
+}
+
+}  // namespace fnmpc::autopilot

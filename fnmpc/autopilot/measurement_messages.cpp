@@ -1,0 +1,188 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "fnmpc/autopilot/measurement_messages.hpp"
+
+#include <cmath>
+#include <limits>
+#include <variant>
+
+#include "fnmpc/autopilot/modes.hpp"
+#include "fnmpc/core/rotation.hpp"
+#include "fnmpc/mavlink/frame_conversions.hpp"
+
+namespace fnmpc::autopilot {
+namespace {
+
+constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
+// HIGHRES_IMU_UPDATED_FLAGS: xacc..zacc, xgyro..zgyro.
+constexpr std::uint16_t kImuAccelGyro = 0x3F;
+
+bool Usec(double stamp, std::uint64_t* out) {
+  if (!(stamp >= 0.0 && stamp < 1e12)) return false;
+  *out = static_cast<std::uint64_t>(std::llround(stamp * 1e6));
+  return true;
+}
+
+float F(double v) { return static_cast<float>(v); }
+Vec3 V(float x, float y, float z) { return {x, y, z}; }
+
+}  // namespace
+
+bool ToMessage(const Measurement& m, mavlink::Message* out) {
+  std::uint64_t t = 0;
+  if (!Usec(m.stamp, &t)) return false;
+  switch (m.kind) {
+    case SensorKind::kImu: {
+      if (!m.accel.allFinite() || !m.gyro.allFinite()) return false;
+      mavlink::HighresImu imu;
+      imu.time_usec = t;
+      const Vec3 a = mavlink::FluToFrd(m.accel), w = mavlink::FluToFrd(m.gyro);
+      imu.xacc = F(a.x());
+      imu.yacc = F(a.y());
+      imu.zacc = F(a.z());
+      imu.xgyro = F(w.x());
+      imu.ygyro = F(w.y());
+      imu.zgyro = F(w.z());
+      imu.fields_updated = kImuAccelGyro;
+      *out = imu;
+      return true;
+    }
+    case SensorKind::kMocapPose: {
+      if (!m.position.allFinite() || !m.euler.allFinite()) return false;
+      mavlink::Odometry o;
+      o.time_usec = t;
+      const Vec3 p = mavlink::EnuToNed(m.position);
+      o.x = F(p.x());
+      o.y = F(p.y());
+      o.z = F(p.z());
+      const Eigen::Quaterniond q(RotationZyx(m.euler.x(), m.euler.y(), m.euler.z()));
+      o.q = mavlink::QuaternionToWxyz(mavlink::EnuFluToNedFrd(q).normalized());
+      o.vx = o.vy = o.vz = kNaNf;
+      o.rollspeed = o.pitchspeed = o.yawspeed = kNaNf;
+      o.pose_covariance[0] = kNaNf;
+      o.velocity_covariance[0] = kNaNf;
+      o.frame_id = mav::kFrameLocalNed;
+      o.child_frame_id = mav::kFrameBodyFrd;
+      o.estimator_type = mav::kEstimatorMocap;
+      *out = o;
+      return true;
+    }
+    case SensorKind::kOpticalFlow: {
+      if (!m.velocity.allFinite()) return false;
+      mavlink::Odometry o;
+      o.time_usec = t;
+      o.x = o.y = o.z = kNaNf;
+      o.q = {kNaNf, kNaNf, kNaNf, kNaNf};
+      const Vec3 v = mavlink::EnuToNed(m.velocity);
+      o.vx = F(v.x());
+      o.vy = F(v.y());
+      o.vz = F(v.z());
+      o.rollspeed = o.pitchspeed = o.yawspeed = kNaNf;
+      o.pose_covariance[0] = kNaNf;
+      o.velocity_covariance[0] = kNaNf;
+      o.frame_id = mav::kFrameLocalNed;
+      o.child_frame_id = mav::kFrameLocalNed;  // velocity in the world frame
+      o.estimator_type = mav::kEstimatorVio;
+      *out = o;
+      return true;
+    }
+    case SensorKind::kBattery: {
+      if (!(m.voltage >= 0.0 && m.voltage < 65.5)) return false;
+      mavlink::SysStatus s;
+      s.onboard_control_sensors_present = mav::kSensorBattery;
+      s.onboard_control_sensors_enabled = mav::kSensorBattery;
+      s.onboard_control_sensors_health = mav::kSensorBattery;
+      s.voltage_battery = static_cast<std::uint16_t>(std::lround(m.voltage * 1000.0));
+      s.current_battery = -1;
+      s.battery_remaining = -1;
+      *out = s;
+      return true;
+    }
+    case SensorKind::kRelative: {
+      const RelativeObservation& r = m.relative;
+      if (r.target < 0 || r.target > 254 || !std::isfinite(r.range) || !std::isfinite(r.bearing) ||
+          !std::isfinite(r.elevation) || !std::isfinite(r.relative_yaw)) {
+        return false;
+      }
+      mavlink::FnmpcRelativeObservation o;
+      o.time_usec = t;
+      o.range = F(r.range);
+      o.bearing = F(r.bearing);
+      o.elevation = F(r.elevation);
+      o.relative_yaw = F(r.relative_yaw);
+      o.target_system = SystemIdOf(r.target);
+      *out = o;
+      return true;
+    }
+    case SensorKind::kCompass:
+      break;
+  }
+  return false;
+}
+
+bool FromMessage(const mavlink::Message& message, int vehicle, double time_offset, double now,
+                 Measurement* out) {
+  Measurement m;
+  m.vehicle = vehicle;
+  m.arrival = now;
+  if (const auto* imu = std::get_if<mavlink::HighresImu>(&message)) {
+    if ((imu->fields_updated & kImuAccelGyro) != kImuAccelGyro) return false;
+    m.kind = SensorKind::kImu;
+    m.stamp = static_cast<double>(imu->time_usec) * 1e-6 + time_offset;
+    m.accel = mavlink::FrdToFlu(V(imu->xacc, imu->yacc, imu->zacc));
+    m.gyro = mavlink::FrdToFlu(V(imu->xgyro, imu->ygyro, imu->zgyro));
+    if (!m.accel.allFinite() || !m.gyro.allFinite()) return false;
+  } else if (const auto* o = std::get_if<mavlink::Odometry>(&message)) {
+    if (o->frame_id != mav::kFrameLocalNed) return false;
+    m.stamp = static_cast<double>(o->time_usec) * 1e-6 + time_offset;
+    if (o->estimator_type == mav::kEstimatorMocap && o->child_frame_id == mav::kFrameBodyFrd) {
+      const Eigen::Quaterniond q = mavlink::QuaternionFromWxyz(o->q);
+      if (!std::isfinite(q.norm()) || q.norm() < 0.5) return false;
+      m.kind = SensorKind::kMocapPose;
+      m.position = mavlink::NedToEnu(V(o->x, o->y, o->z));
+      m.euler = EulerZyx(mavlink::NedFrdToEnuFlu(q.normalized()).toRotationMatrix());
+      if (!m.position.allFinite()) return false;
+    } else if (o->estimator_type == mav::kEstimatorVio &&
+               o->child_frame_id == mav::kFrameLocalNed) {
+      m.kind = SensorKind::kOpticalFlow;
+      m.velocity = mavlink::NedToEnu(V(o->vx, o->vy, o->vz));
+      if (!m.velocity.allFinite()) return false;
+    } else {
+      return false;
+    }
+  } else if (const auto* s = std::get_if<mavlink::SysStatus>(&message)) {
+    if ((s->onboard_control_sensors_present & mav::kSensorBattery) == 0 ||
+        s->voltage_battery == UINT16_MAX) {
+      return false;
+    }
+    m.kind = SensorKind::kBattery;
+    m.stamp = now;
+    m.voltage = s->voltage_battery * 1e-3;
+  } else if (const auto* r = std::get_if<mavlink::FnmpcRelativeObservation>(&message)) {
+    m.kind = SensorKind::kRelative;
+    m.stamp = static_cast<double>(r->time_usec) * 1e-6 + time_offset;
+    m.relative.target = VehicleOf(r->target_system);
+    m.relative.range = r->range;
+    m.relative.bearing = r->bearing;
+    m.relative.elevation = r->elevation;
+    m.relative.relative_yaw = r->relative_yaw;
+    if (m.relative.target < 0) return false;
+  } else {
+    return false;
+  }
+  *out = m;
+  return true;
+}
+
+void ClockOffset::Observe(double remote, double local) {
+  if (!std::isfinite(remote) || !std::isfinite(local)) return;
+  const double d = local - remote;
+  if (known_ && remote < last_remote_ - reset_after_) {
+    known_ = false;
+    ++resets_;
+  }
+  if (!known_ || d < offset_) offset_ = d;
+  known_ = true;
+  last_remote_ = remote;
+}
+
+}  // namespace fnmpc::autopilot
