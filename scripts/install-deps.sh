@@ -5,6 +5,11 @@
 #   scripts/install-deps.sh            core + MuJoCo + Ceres + IPOPT + plotting + Python
 #                                      module + browser replay (Node.js/npm, Chromium)
 #   scripts/install-deps.sh --with-ros also the ROS 1 packages for ros/
+#   scripts/install-deps.sh --with-aarch64
+#                                      also the aarch64 cross toolchain, qemu-user and the
+#                                      arm64 libraries of the onboard layers (docs/onboard.md);
+#                                      adds the arm64 architecture to dpkg
+# The flags combine (e.g. --with-ros --with-aarch64).
 set -euo pipefail
 
 packages=(
@@ -29,7 +34,24 @@ ros_packages=(
   ros-message-generation python3-rosbag python3-rostopic python3-rosnode rosbash
   python3-geometry-msgs python3-sensor-msgs python3-nav-msgs libros-rosgraph-msgs-dev
 )
-if [[ "${1:-}" == "--with-ros" ]]; then packages+=("${ros_packages[@]}"); fi
+# The onboard cross build (scripts/build-aarch64.sh): the compiler, the user-mode emulator that
+# runs its tests, and the arm64 builds of the libraries with code (Eigen, CLI11 and
+# nlohmann-json are header-only, Architecture: all, and come from the list above).
+# libyaml-cpp-dev is not Multi-Arch: same, so its arm64 package would replace the build
+# machine's: only the arm64 runtime library is installed, and build-aarch64.sh unpacks the
+# arm64 -dev package into its build directory (apt-get download, dpkg-deb -x).
+aarch64_packages=(
+  g++-aarch64-linux-gnu qemu-user file
+  libyaml-cpp0.7:arm64 libfmt-dev:arm64 libspdlog-dev:arm64 libgtest-dev:arm64 libgmock-dev:arm64
+)
+with_aarch64=0
+for arg in "$@"; do
+  case "$arg" in
+    --with-ros) packages+=("${ros_packages[@]}") ;;
+    --with-aarch64) packages+=("${aarch64_packages[@]}"); with_aarch64=1 ;;
+    *) echo "install-deps: unknown argument $arg" >&2; exit 2 ;;
+  esac
+done
 
 missing=()
 for p in "${packages[@]}"; do
@@ -41,6 +63,10 @@ if [[ ${#missing[@]} -eq 0 ]]; then
 fi
 SUDO=""
 if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
+if [[ $with_aarch64 -eq 1 ]] && ! dpkg --print-foreign-architectures | grep -qx arm64; then
+  echo "install-deps: adding the arm64 architecture to dpkg"
+  $SUDO dpkg --add-architecture arm64
+fi
 echo "install-deps: installing ${missing[*]}"
 $SUDO apt-get update -qq
 DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

@@ -251,6 +251,14 @@ FNMPC_INSTANTIATE(6)
 
 // ---- Closed loop ----
 
+}  // namespace fnmpc::rti::benchmark
+
+// The empty asm keeps each call: the compiler may not drop a call of an empty function.
+extern "C" [[gnu::noinline]] void fnmpc_bench_step_begin(int step) { asm volatile("" ::"r"(step)); }
+extern "C" [[gnu::noinline]] void fnmpc_bench_step_end(int step) { asm volatile("" ::"r"(step)); }
+
+namespace fnmpc::rti::benchmark {
+
 namespace {
 
 // Plant: the same quadrotor model, RK4 at 1 ms for one sampling time.
@@ -309,9 +317,11 @@ ClosedLoopResult RunLeader(Scenario scenario, int steps, const RtiSettings& sett
     const double t = k * ts;
     StepRecord rec;
     Stopwatch sw;
+    fnmpc_bench_step_begin(k);
     if (k > 0) solver.Shift();
     SetLeaderReferences(&solver, ref, t);
     solver.Step(x, &u);
+    fnmpc_bench_step_end(k);
     Record(&solver, x, u, sw, &result, &rec);
     if (k == 0) {
       result.initial_iterations = solver.stats().sqp_iterations;
@@ -362,6 +372,7 @@ ClosedLoopResult RunFollower(Scenario scenario, int steps, const RtiSettings& se
     own = plant.tail<6>();
     StepRecord rec;
     Stopwatch sw;
+    fnmpc_bench_step_begin(k);
     Vec<Solver::kNx> x0;
     if constexpr (kReduced) {
       if (k > 0) {
@@ -376,6 +387,7 @@ ClosedLoopResult RunFollower(Scenario scenario, int steps, const RtiSettings& se
       x0 = FollowerState<Nn>(own, nb);
     }
     solver.Step(x0, &u);
+    fnmpc_bench_step_end(k);
     Record(&solver, x0, u, sw, &result, &rec);
     if (k == 0) {
       result.initial_iterations = solver.stats().sqp_iterations;

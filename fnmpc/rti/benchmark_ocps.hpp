@@ -127,9 +127,21 @@ struct ClosedLoopResult {
 };
 
 /// Runs the closed-loop scenario of the spec for one problem (plant: the same model,
-/// RK4 at 1 ms, no noise, no mismatch). `steps` < 0 runs the whole scenario.
+/// RK4 at 1 ms, no noise, no mismatch). `steps` < 0 runs the whole scenario. Each timed
+/// control step (the span of StepRecord::step_us) starts with a call of
+/// fnmpc_bench_step_begin and ends with one of fnmpc_bench_step_end.
 ClosedLoopResult RunClosedLoop(ProblemId problem, Scenario scenario, int steps = -1,
                                const RtiSettings& settings = SpecSettings());
+
+}  // namespace fnmpc::rti::benchmark
+
+/// Step markers of RunClosedLoop: empty and never inlined, so that an instruction counter
+/// under emulation finds the control steps by these functions' addresses
+/// (scripts/onboard-count.py, docs/onboard.md). `step` is the control step's index.
+extern "C" void fnmpc_bench_step_begin(int step);
+extern "C" void fnmpc_bench_step_end(int step);
+
+namespace fnmpc::rti::benchmark {
 
 /// Summary figures of a run (medians and maxima over the steps).
 struct ClosedLoopSummary {
