@@ -10,7 +10,7 @@
 include(CMakePackageConfigHelpers)
 include(GNUInstallDirs)
 
-set(FNMPC_INSTALLED_LAYERS core mavlink autopilot model qp ocp rti estimation formation)
+set(FNMPC_INSTALLED_LAYERS core mavlink link autopilot model qp ocp rti estimation formation)
 set(fnmpc_install_targets "")
 foreach(layer IN LISTS FNMPC_INSTALLED_LAYERS)
   if(NOT TARGET fnmpc_${layer})

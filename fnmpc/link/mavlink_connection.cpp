@@ -1,0 +1,23 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "fnmpc/link/mavlink_connection.hpp"
+
+#include <stdexcept>
+#include <utility>
+
+namespace fnmpc::link {
+
+MavlinkConnection::MavlinkConnection(std::unique_ptr<Transport> transport, std::uint8_t system_id,
+                                     std::uint8_t component_id)
+    : transport_(std::move(transport)), encoder_(system_id, component_id) {
+  if (!transport_) throw std::invalid_argument("MavlinkConnection: no transport");
+}
+
+bool MavlinkConnection::Send(const mavlink::Message& message) {
+  const std::size_t n = encoder_.Encode(message, frame_buffer_);
+  const bool sent =
+      n > 0 && transport_->Write(std::span<const std::uint8_t>(frame_buffer_.data(), n));
+  ++(sent ? frames_sent_ : send_failures_);
+  return sent;
+}
+
+}  // namespace fnmpc::link
