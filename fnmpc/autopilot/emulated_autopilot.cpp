@@ -62,8 +62,10 @@ void EmulatedAutopilot::Ack(const mavlink::Frame& frame, std::uint16_t command, 
 void EmulatedAutopilot::OnFrame(const mavlink::Frame& frame, double now, Outbox* out) {
   if (const auto* sp = std::get_if<mavlink::SetAttitudeTarget>(&frame.message)) {
     if (sp->target_system != settings_.system_id) return;
+    const AttitudeSetpoint s = FromSetAttitudeTarget(*sp);
+    if (!s.valid()) return;  // e.g. the lockstep's no-op answer (all fields ignored)
     if (!StreamAlive(now)) stream_start_ = now;
-    setpoint_ = FromSetAttitudeTarget(*sp);
+    setpoint_ = s;
     setpoint_time_ = now;
     return;
   }

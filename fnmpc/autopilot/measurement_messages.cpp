@@ -113,8 +113,17 @@ bool ToMessage(const Measurement& m, mavlink::Message* out) {
       *out = o;
       return true;
     }
-    case SensorKind::kCompass:
-      break;
+    case SensorKind::kCompass: {
+      // The heading alone: roll, pitch and the rates are not measured.
+      if (!std::isfinite(m.yaw) || !(m.stamp < 4294967.0)) return false;
+      mavlink::Attitude a;
+      a.time_boot_ms = static_cast<std::uint32_t>(std::llround(m.stamp * 1e3));
+      a.roll = a.pitch = kNaNf;
+      a.yaw = F(mavlink::EulerEnuFluToNedFrd(Vec3(0.0, 0.0, m.yaw)).z());
+      a.rollspeed = a.pitchspeed = a.yawspeed = kNaNf;
+      *out = a;
+      return true;
+    }
   }
   return false;
 }
@@ -149,6 +158,11 @@ bool FromMessage(const mavlink::Message& message, int vehicle, double time_offse
     } else {
       return false;
     }
+  } else if (const auto* a = std::get_if<mavlink::Attitude>(&message)) {
+    if (!std::isfinite(a->yaw)) return false;
+    m.kind = SensorKind::kCompass;
+    m.stamp = static_cast<double>(a->time_boot_ms) * 1e-3 + time_offset;
+    m.yaw = mavlink::EulerNedFrdToEnuFlu(Vec3(0.0, 0.0, a->yaw)).z();
   } else if (const auto* s = std::get_if<mavlink::SysStatus>(&message)) {
     if ((s->onboard_control_sensors_present & mav::kSensorBattery) == 0 ||
         s->voltage_battery == UINT16_MAX) {

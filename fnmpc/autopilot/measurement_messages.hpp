@@ -15,7 +15,8 @@
 ///   kOpticalFlow  ODOMETRY, estimator VIO: velocity only, in LOCAL_NED (position NaN)
 ///   kBattery      SYS_STATUS voltage_battery [mV] (no timestamp: stamped on arrival)
 ///   kRelative     FNMPC_RELATIVE_OBSERVATION (fnmpc dialect)
-///   kCompass      not carried (autopilots fuse their magnetometer; mocap gives the yaw)
+///   kCompass      ATTITUDE yaw (roll, pitch, rates NaN when we send it; from a real
+///                 autopilot its heading estimate, fused from its magnetometer)
 ///
 /// Vehicles are MAVLink systems: vehicle i has system id i + 1.
 namespace fnmpc::autopilot {

@@ -31,9 +31,11 @@ mavlink::SetAttitudeTarget ToSetAttitudeTarget(const AttitudeSetpoint& setpoint,
 
 AttitudeSetpoint FromSetAttitudeTarget(const mavlink::SetAttitudeTarget& message) {
   AttitudeSetpoint s;
-  constexpr std::uint8_t kIgnoreAttitude = 1U << 7;  // ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE
+  // ATTITUDE_TARGET_TYPEMASK_THROTTLE_IGNORE, _ATTITUDE_IGNORE: nothing to fly.
+  constexpr std::uint8_t kIgnoreThrustOrAttitude = 1U << 6 | 1U << 7;
   const Eigen::Quaterniond q = mavlink::QuaternionFromWxyz(message.q);
-  if ((message.type_mask & kIgnoreAttitude) != 0 || !std::isfinite(q.norm()) || q.norm() < 0.5) {
+  if ((message.type_mask & kIgnoreThrustOrAttitude) != 0 || !std::isfinite(q.norm()) ||
+      q.norm() < 0.5) {
     return s;
   }
   const Vec3 rpy = EulerZyx(mavlink::NedFrdToEnuFlu(q.normalized()).toRotationMatrix());

@@ -26,7 +26,7 @@ mavlink::SetAttitudeTarget ToSetAttitudeTarget(const AttitudeSetpoint& setpoint,
                                                std::uint8_t target_system,
                                                std::uint8_t target_component);
 /// The setpoint a SET_ATTITUDE_TARGET carries (its quaternion normalised; invalid when the
-/// quaternion is degenerate or the message asks for body rates only).
+/// quaternion is degenerate or the type mask ignores the attitude or the thrust).
 AttitudeSetpoint FromSetAttitudeTarget(const mavlink::SetAttitudeTarget& message);
 
 }  // namespace fnmpc::autopilot

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 #include <random>
 
 #include "fnmpc/autopilot/measurement_messages.hpp"
@@ -60,12 +61,13 @@ Measurement Sample(SensorKind kind) {
   m.velocity = Vec3(0.4, -0.5, 0.1);
   m.voltage = 15.432;
   m.relative = RelativeObservation{1, 2.5, 0.7, -0.1, 0.2};
+  m.yaw = 2.5;
   return m;
 }
 
 TEST(MeasurementMessagesTest, EveryCarriedKindRoundTrips) {
   for (const SensorKind k : {SensorKind::kImu, SensorKind::kMocapPose, SensorKind::kOpticalFlow,
-                             SensorKind::kBattery, SensorKind::kRelative}) {
+                             SensorKind::kBattery, SensorKind::kRelative, SensorKind::kCompass}) {
     const Measurement m = Sample(k);
     mavlink::Message msg;
     ASSERT_TRUE(ToMessage(m, &msg)) << ToString(k);
@@ -74,8 +76,10 @@ TEST(MeasurementMessagesTest, EveryCarriedKindRoundTrips) {
     EXPECT_EQ(back.kind, k);
     EXPECT_EQ(back.vehicle, 2);
     EXPECT_EQ(back.arrival, 20.0);
-    // Stamps: microseconds; SYS_STATUS has none (stamped on arrival)
-    EXPECT_NEAR(back.stamp, k == SensorKind::kBattery ? 20.0 : m.stamp, 1e-9) << ToString(k);
+    // Stamps: microseconds (ATTITUDE: milliseconds); SYS_STATUS has none (stamped on arrival)
+    EXPECT_NEAR(back.stamp, k == SensorKind::kBattery ? 20.0 : m.stamp,
+                k == SensorKind::kCompass ? 0.5e-3 : 1e-9)
+        << ToString(k);
     switch (k) {
       case SensorKind::kImu:
         EXPECT_LT((back.accel - m.accel).norm(), 1e-5);
@@ -98,6 +102,9 @@ TEST(MeasurementMessagesTest, EveryCarriedKindRoundTrips) {
         EXPECT_NEAR(back.relative.elevation, -0.1, 1e-6);
         EXPECT_NEAR(back.relative.relative_yaw, 0.2, 1e-6);
         break;
+      case SensorKind::kCompass:
+        EXPECT_NEAR(back.yaw, 2.5, 1e-6);
+        break;
       default:
         break;
     }
@@ -118,12 +125,23 @@ TEST(MeasurementMessagesTest, FramesAreMavlinksAxes) {
   EXPECT_FLOAT_EQ(o.z, -0.8F);
   EXPECT_EQ(o.estimator_type, mav::kEstimatorMocap);
   EXPECT_TRUE(std::isnan(o.vx));
+  // A heading east (ENU yaw 0) is NED yaw +pi/2 (clockwise from north); north is NED 0
+  Measurement compass = Sample(SensorKind::kCompass);
+  compass.yaw = 0.0;
+  ASSERT_TRUE(ToMessage(compass, &msg));
+  EXPECT_NEAR(std::get<mavlink::Attitude>(msg).yaw, std::numbers::pi / 2, 1e-6);
+  EXPECT_TRUE(std::isnan(std::get<mavlink::Attitude>(msg).roll));
+  compass.yaw = std::numbers::pi / 2;
+  ASSERT_TRUE(ToMessage(compass, &msg));
+  EXPECT_NEAR(std::get<mavlink::Attitude>(msg).yaw, 0.0, 1e-6);
 }
 
 TEST(MeasurementMessagesTest, WhatTheLinkDoesNotCarryIsRefused) {
   mavlink::Message msg;
-  EXPECT_FALSE(ToMessage(Sample(SensorKind::kCompass), &msg));
-  Measurement m = Sample(SensorKind::kImu);
+  Measurement m = Sample(SensorKind::kCompass);
+  m.yaw = kNaN;
+  EXPECT_FALSE(ToMessage(m, &msg));
+  m = Sample(SensorKind::kImu);
   m.accel.x() = kNaN;
   EXPECT_FALSE(ToMessage(m, &msg));
   m = Sample(SensorKind::kImu);
