@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "apps/fnmpc/controller_setup.hpp"
 #include "apps/fnmpc/run_log.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
 #include "fnmpc/formation/trajectory.hpp"
@@ -18,16 +19,6 @@
 /// formation::VehicleController per flying vehicle (every Ts), CSV logs and metrics.
 namespace fnmpc::app {
 
-/// Scenario -> library objects: the one mapping used by `fnmpc run` and by the ROS nodes
-/// (ros/fnmpc_ros), so both fly the same controllers in the same world.
-
-/// The leader's reference offsets: the waypoints (from the origin) or, in manual mode, the
-/// random walk seeded from `seed`.
-formation::WaypointTrajectory LeaderTrajectory(const config::ScenarioConfig& scenario,
-                                               std::uint64_t seed);
-/// The controller of vehicle `i` (throws std::invalid_argument on a bad index).
-formation::ControllerConfig ControllerConfigFor(const config::ScenarioConfig& scenario, int i,
-                                                const formation::WaypointTrajectory& trajectory);
 /// The world: every vehicle resting at its start, noise seeded from `seed`; with the
 /// scenario's reality on, ApplyReality's true plants and wind.
 sim::WorldConfig WorldConfigFor(const config::ScenarioConfig& scenario, std::uint64_t seed);
@@ -36,15 +27,6 @@ sim::WorldConfig WorldConfigFor(const config::ScenarioConfig& scenario, std::uin
 /// the spread of `reality.plant`) and the wind of `reality.wind`.
 void ApplyReality(const config::ScenarioConfig& scenario, std::uint64_t seed,
                   sim::WorldConfig* world);
-
-/// Formation error of follower `i` from true positions (one per vehicle) and its true yaw:
-/// the mean over its neighbours j of |(p_j - p_i) in its target frame - d_j| [m]; the
-/// per-neighbour errors and relative positions go to `per_neighbour` / `relative` when given
-/// (entries beyond the neighbour count stay NaN). NaN for the leader.
-double FormationError(const config::ScenarioConfig& scenario, int i,
-                      const std::vector<Vec3>& positions, double yaw,
-                      std::array<double, formation::kMaxNeighbours>* per_neighbour = nullptr,
-                      std::array<Vec3, formation::kMaxNeighbours>* relative = nullptr);
 
 /// Options of one run.
 struct RunOptions {

@@ -1,0 +1,187 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "apps/fnmpc/onboard_link.hpp"
+
+#include <fmt/core.h>
+
+#include <stdexcept>
+
+#include "apps/fnmpc/onboard_vehicle.hpp"
+#include "fnmpc/autopilot/measurement_messages.hpp"
+#include "fnmpc/autopilot/modes.hpp"
+#include "fnmpc/config/settings_yaml.hpp"
+#include "fnmpc/link/link_address.hpp"
+#include "fnmpc/link/mavlink_connection.hpp"
+
+namespace fnmpc::app {
+namespace {
+
+autopilot::SessionSettings SessionSettingsFor(const OnboardLinkOptions& o, int vehicle) {
+  autopilot::SessionSettings s;
+  if (!o.settings_file.empty()) {
+    config::YamlMap map = config::YamlMap::LoadFile(o.settings_file);
+    config::SettingsReader reader(&map);
+    reader.Read(&s);
+    reader.Finish();
+    map.Finish();
+  }
+  s.autopilot = autopilot::ParseAutopilotKind(o.autopilot);
+  // One MAVLink system per vehicle: vehicle i is system i + 1, flight controller and onboard
+  // computer alike (PX4 MAV_SYS_ID, ArduPilot SYSID_THISMAV).
+  s.target_system = autopilot::SystemIdOf(vehicle);
+  s.system_id = s.target_system;
+  return s;
+}
+
+formation::ControllerConfig WithReadyTakeoff(formation::ControllerConfig c, double ready) {
+  if (c.takeoff_time < ready) c.takeoff_time = ready;
+  return c;
+}
+
+}  // namespace
+
+struct OnboardLink::Impl {
+  Impl(const formation::ControllerConfig& c, int vehicle, const OnboardLinkOptions& o,
+       const autopilot::SessionSettings& s)
+      : settings(s),
+        ready(s.warmup + OnboardVehicle::kHandshakeAllowance),
+        scenario_takeoff(c.takeoff_time),
+        conn(link::OpenTransport(link::ParseLinkAddress(o.link)),
+             static_cast<std::uint8_t>(s.system_id), static_cast<std::uint8_t>(s.component_id)),
+        onboard(WithReadyTakeoff(c, ready), s,
+                o.autopilot_clock ? OnboardClock::kAutopilot : OnboardClock::kLocal),
+        autopilot_clock(o.autopilot_clock) {
+    (void)vehicle;
+  }
+  void Send() {
+    for (const mavlink::Message& m : out) conn.Send(m);
+    out.Clear();
+  }
+  autopilot::SessionSettings settings;
+  double ready;
+  double scenario_takeoff;
+  link::MavlinkConnection conn;
+  OnboardVehicle onboard;
+  bool autopilot_clock;
+  autopilot::Outbox out;
+  const OnboardStep* last = nullptr;
+};
+
+OnboardLink::OnboardLink(formation::ControllerConfig controller, int vehicle,
+                         const OnboardLinkOptions& options) {
+  const autopilot::SessionSettings s = SessionSettingsFor(options, vehicle);
+  impl_ = std::make_unique<Impl>(controller, vehicle, options, s);
+}
+
+OnboardLink::~OnboardLink() = default;
+
+bool OnboardLink::Poll(double timeout, double now) {
+  bool tick = false;
+  impl_->conn.Poll(timeout, [&](const mavlink::Frame& f) {
+    double at = now;
+    if (impl_->autopilot_clock) {
+      const double t = impl_->onboard.tick_time();
+      at = std::isfinite(t) ? t : 0.0;
+    }
+    tick = impl_->onboard.OnFrame(f, at) || tick;
+  });
+  return tick;
+}
+
+double OnboardLink::tick_time() const { return impl_->onboard.tick_time(); }
+long OnboardLink::ticks() const { return impl_->onboard.ticks(); }
+
+const formation::ControlOutput& OnboardLink::Step(double t) {
+  impl_->last = &impl_->onboard.Step(t, &impl_->out);
+  impl_->Send();
+  impl_->onboard.Diagnose();
+  return impl_->last->control;
+}
+
+bool OnboardLink::sent() const { return impl_->last != nullptr && impl_->last->sent; }
+double OnboardLink::normalised_thrust() const {
+  return impl_->last != nullptr ? impl_->last->setpoint.thrust : kNaN;
+}
+
+void OnboardLink::SayHello() {
+  mavlink::Heartbeat hello;
+  hello.type = autopilot::mav::kTypeOnboardController;
+  hello.autopilot = autopilot::mav::kAutopilotInvalid;
+  hello.mavlink_version = 3;
+  impl_->conn.Send(hello);
+}
+
+void OnboardLink::Stop(double t) {
+  impl_->onboard.Stop(t);
+  impl_->last = &impl_->onboard.Step(t, &impl_->out);  // our HEARTBEAT says standby
+  impl_->Send();
+}
+
+bool OnboardLink::stopped() const { return impl_->onboard.stop() != OnboardStop::kNone; }
+bool OnboardLink::disarmed() const { return impl_->onboard.stop() == OnboardStop::kDisarmed; }
+std::string OnboardLink::stop_reason() const {
+  const OnboardStop s = impl_->onboard.stop();
+  std::string r(ToString(s));
+  if (s == OnboardStop::kSession) {
+    r += fmt::format(" ({}, {})", autopilot::ToString(impl_->onboard.session().state()),
+                     autopilot::ToString(impl_->onboard.session().reason()));
+  }
+  return r;
+}
+std::string OnboardLink::session_state() const {
+  return std::string(autopilot::ToString(impl_->onboard.session().state()));
+}
+
+bool OnboardLink::PopEvent(std::string* line, nlohmann::json* event) {
+  autopilot::SessionEvent e;
+  if (!impl_->onboard.session().PopEvent(&e)) return false;
+  *event = {{"t", e.time},
+            {"state", autopilot::ToString(e.state)},
+            {"reason", autopilot::ToString(e.reason)}};
+  if (e.command != 0) (*event)["command"] = e.command;
+  if (e.result >= 0) (*event)["result"] = e.result;
+  *line = fmt::format("t = {:.2f} s: session {}", e.time, autopilot::ToString(e.state));
+  if (e.reason != autopilot::SessionReason::kNone) {
+    *line += fmt::format(" ({})", autopilot::ToString(e.reason));
+  }
+  if (e.command != 0) *line += fmt::format(", MAV_CMD {} result {}", e.command, e.result);
+  return true;
+}
+
+double OnboardLink::ready_time() const { return impl_->ready; }
+bool OnboardLink::moved_takeoff() const { return impl_->scenario_takeoff < impl_->ready; }
+double OnboardLink::scenario_takeoff_time() const { return impl_->scenario_takeoff; }
+int OnboardLink::system_id() const { return impl_->settings.system_id; }
+std::string OnboardLink::describe() const { return impl_->conn.transport().Describe(); }
+long OnboardLink::measurements() const { return impl_->onboard.measurements(); }
+formation::VehicleController& OnboardLink::controller() { return impl_->onboard.controller(); }
+
+nlohmann::json OnboardLink::Summary() const {
+  const OnboardVehicle& v = impl_->onboard;
+  const mavlink::ParserCounters& pc = impl_->conn.counters();
+  return {{"autopilot", autopilot::ToString(impl_->settings.autopilot)},
+          {"link", describe()},
+          {"system_id", impl_->settings.system_id},
+          {"stop", ToString(v.stop())},
+          {"session_state", autopilot::ToString(v.session().state())},
+          {"session_reason", autopilot::ToString(v.session().reason())},
+          {"setpoints_sent", v.session().setpoints_sent()},
+          {"setpoints_skipped", v.session().skipped_setpoints()},
+          {"measurements", v.measurements()},
+          {"ticks", v.ticks()},
+          {"final_phase", formation::ToString(v.controller().phase())},
+          {"failsafe", v.controller().failsafe()},
+          {"fallbacks", v.controller().fallbacks()},
+          {"takeoff_time_s", v.controller().config().takeoff_time},
+          {"link_counters",
+           {{"frames_ok", pc.frames_ok},
+            {"bytes_received", pc.bytes_received},
+            {"bytes_discarded", pc.bytes_discarded},
+            {"crc_errors", pc.crc_errors},
+            {"unknown_ids", pc.unknown_ids},
+            {"bad_lengths", pc.bad_lengths},
+            {"signature_failures", pc.signature_failures},
+            {"frames_sent", impl_->conn.frames_sent()},
+            {"send_failures", impl_->conn.send_failures()}}}};
+}
+
+}  // namespace fnmpc::app

@@ -1,0 +1,87 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: BSD-3-Clause
+# The onboard executable flies a scenario through the simulator's MAVLink endpoint over UDP on
+# localhost (`fnmpc sim-link --lockstep` + one `fnmpc fly --clock autopilot` per vehicle), and
+# its formation error is within 20 % of the same scenario flown in process (`fnmpc run`, same
+# seed). Usage: fly_over_udp_test.sh FNMPC SOURCE_DIR AUTOPILOT [SCENARIO]
+set -euo pipefail
+fnmpc=$1
+src=$2
+autopilot=$3
+scenario=${4:-$src/config/scenarios/triangle.yaml}
+work=$(mktemp -d)
+pids=()
+cleanup() {
+  for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
+  rm -rf "$work"
+}
+trap cleanup EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+# A port range of our own: ctest may run other tests (and this one for the other autopilot) at
+# the same time.
+base=$((20000 + ($$ % 2000) * 10))
+vehicles=$(/usr/bin/python3 -c "
+import sys, yaml
+print(' '.join(v['name'] for v in yaml.safe_load(open(sys.argv[1]))['vehicles']))" "$scenario")
+
+# In process.
+"$fnmpc" run "$scenario" -o "$work/inproc" --quiet > /dev/null
+
+# Over the link: the endpoint first, then the onboard computers.
+"$fnmpc" sim-link "$scenario" --autopilot "$autopilot" --lockstep --port "$base" \
+  -o "$work/link" --quiet > "$work/sim-link.out" 2> "$work/sim-link.err" &
+sim=$!
+pids+=("$sim")
+i=0
+fly_pids=()
+for v in $vehicles; do
+  "$fnmpc" fly "$v" "$scenario" --link "udpout:127.0.0.1:$((base + i))" \
+    --autopilot "$autopilot" --clock autopilot -o "$work/fly/$v" --quiet \
+    2> "$work/fly-$v.err" &
+  fly_pids+=("$!")
+  pids+=("$!")
+  i=$((i + 1))
+done
+sim_rc=0
+wait "$sim" || sim_rc=$?
+fly_rc=()
+for p in "${fly_pids[@]}"; do
+  rc=0
+  wait "$p" || rc=$?
+  fly_rc+=("$rc")
+done
+if [ "$sim_rc" -ne 0 ]; then
+  cat "$work/sim-link.err" >&2
+  fail "sim-link exited with $sim_rc"
+fi
+i=0
+for v in $vehicles; do
+  [ "${fly_rc[$i]}" -eq 0 ] || { cat "$work/fly-$v.err" >&2; fail "fly $v exited with ${fly_rc[$i]}"; }
+  i=$((i + 1))
+done
+
+/usr/bin/python3 - "$work" $vehicles <<'PY'
+import json, sys
+work, vehicles = sys.argv[1], sys.argv[2:]
+inproc = json.load(open(f"{work}/inproc/summary.json"))
+link = json.load(open(f"{work}/link/summary.json"))
+assert link["complete"], link
+assert link["every_vehicle_armed_flew_and_landed"], link["vehicles"]
+for v in vehicles:
+    fly = json.load(open(f"{work}/fly/{v}/fly-summary.json"))
+    assert fly["stop"] == "disarmed", (v, fly["stop"], fly["session_reason"])
+    assert fly["setpoints_skipped"] == 0, (v, fly["setpoints_skipped"])
+    assert fly["link_counters"]["crc_errors"] == 0, fly["link_counters"]
+    assert fly["failsafe"] is False and fly["fallbacks"] == 0, fly
+    states = [e["state"] for e in fly["events"]]
+    assert states[:4] == ["warming_up", "requesting_mode", "arming", "active"], states
+    assert states[-1] == "disarmed", states
+a = inproc["mean_formation_error_m"]
+b = link["mean_formation_error_m"]
+rel = abs(b - a) / a
+print(f"mean formation error: in process {a:.4f} m, over MAVLink/UDP {b:.4f} m "
+      f"({100 * rel:.1f} % apart; steady state {inproc['steady_state_formation_error_m']:.4f} "
+      f"vs {link['steady_state_formation_error_m']:.4f} m); wall {link['wall_time_s']:.1f} s")
+assert rel <= 0.20, f"{100 * rel:.1f} % apart (limit 20 %)"
+PY
