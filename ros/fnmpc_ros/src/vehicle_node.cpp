@@ -13,6 +13,9 @@
 //    setpoint stamped t_sync. Deterministic, the same order as the CLI's closed loop.
 //  * free-running (flight): each measurement goes to the estimators on arrival; a timer on
 //    ROS time (wall or /clock) runs Control every sample_time.
+// With ~link (docs/autopilot.md) the setpoints go to the flight controller over MAVLink
+// (app::OnboardLink, as `fnmpc fly`), whose measurements join the topics'; with
+// ~link_clock: autopilot the steps follow the link's ticks (`fnmpc sim-link --lockstep`).
 #include <nav_msgs/Path.h>
 #include <ros/callback_queue.h>
 #include <ros/names.h>
@@ -24,6 +27,7 @@
 #include <memory>
 #include <vector>
 
+#include "apps/fnmpc/onboard_link.hpp"
 #include "apps/fnmpc/scenario_runner.hpp"
 #include "conversions.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
@@ -81,8 +85,33 @@ class VehicleNode {
       scenario_.compensation = static_cast<formation::Compensation>(level);
     }
     const auto trajectory = app::LeaderTrajectory(scenario_, static_cast<std::uint64_t>(seed));
-    controller_ = std::make_unique<formation::VehicleController>(
-        app::ControllerConfigFor(scenario_, index_, trajectory));
+    // ~link: fly through the flight controller over MAVLink (docs/autopilot.md), the same
+    // OnboardLink as `fnmpc fly`; the setpoint topic then records what was sent.
+    app::OnboardLinkOptions link;
+    pnh.param("link", link.link, std::string());
+    pnh.param("autopilot", link.autopilot, std::string("px4"));
+    pnh.param("link_settings", link.settings_file, std::string());
+    std::string link_clock;
+    pnh.param("link_clock", link_clock, std::string("local"));
+    if (link_clock != "local" && link_clock != "autopilot") {
+      throw std::runtime_error("parameter " + pnh.resolveName("link_clock") + " = '" + link_clock +
+                               "': expected local or autopilot");
+    }
+    link.autopilot_clock = link_clock == "autopilot";
+    const formation::ControllerConfig cc = app::ControllerConfigFor(scenario_, index_, trajectory);
+    if (!link.link.empty()) {
+      if (lockstep_) {
+        throw std::runtime_error("parameters " + pnh.resolveName("link") + " and " +
+                                 pnh.resolveName("lockstep") +
+                                 ": the link's lockstep is ~link_clock: autopilot, not sim_node's");
+      }
+      link_ = std::make_unique<app::OnboardLink>(cc, index_, link);
+      controller_ = &link_->controller();
+      link_lockstep_ = link.autopilot_clock;
+    } else {
+      own_controller_ = std::make_unique<formation::VehicleController>(cc);
+      controller_ = own_controller_.get();
+    }
     frame_ = v.leader ? std::string(kWorldFrame) : MpcFrame(name_);
 
     setpoint_pub_ = nh_.advertise<fnmpc_ros::AttitudeThrustSetpoint>(topics::kSetpoint, 10);
@@ -127,16 +156,45 @@ class VehicleNode {
     subs_.push_back(nh_.subscribe<fnmpc_ros::RelativeMeasurement>(
         topics::kRelative, q, [this](const auto& m) { Receive(FromRelative(*m, index_)); }, {},
         hints));
-    if (lockstep_) {
+    if (link_lockstep_) {
+      // Control steps on the link's ticks (Poll).
+    } else if (lockstep_) {
       sync_sub_ = nh_.subscribe<fnmpc_ros::SimSync>(
           topics::kSync, 10, [this](const auto& m) { syncs_.push_back(*m); }, {}, hints);
     } else {
       timer_ = nh_.createTimer(ros::Duration(scenario_.rti.sample_time),
                                [this](const ros::TimerEvent&) { Step(ros::Time::now().toSec()); });
     }
-    ROS_INFO("vehicle_node %s (%s, vehicle %d of %s): %s", name_.c_str(),
+    ROS_INFO("vehicle_node %s (%s, vehicle %d of %s): %s%s", name_.c_str(),
              v.leader ? "leader" : "follower", index_, scenario_file.c_str(),
-             lockstep_ ? "lockstep with sim_node" : "free-running on ROS time");
+             link_lockstep_ ? "lockstep with the link's autopilot"
+                            : (lockstep_ ? "lockstep with sim_node" : "free-running on ROS time"),
+             link_ ? (", flying over " + link_->describe()).c_str() : "");
+    if (link_ && link_->moved_takeoff()) {
+      ROS_INFO("vehicle_node %s: take-off at %.2f s instead of %.2f s (autopilot handshake)",
+               name_.c_str(), link_->ready_time(), link_->scenario_takeoff_time());
+    }
+  }
+
+  /// The link (~link): reads what came, steps on a tick (~link_clock: autopilot), logs the
+  /// session's events. False once the link stopped commanding and has nothing more to do.
+  void PollLink() {
+    if (!link_) return;
+    const double now = ros::Time::now().toSec();
+    if (link_->Poll(link_lockstep_ ? 0.001 : 0.0, now)) Step(link_->tick_time());
+    if (link_lockstep_ && link_->ticks() == 0 && now - last_hello_ >= 0.5) {
+      link_->SayHello();
+      last_hello_ = now;
+    }
+    std::string line;
+    nlohmann::json event;
+    while (link_->PopEvent(&line, &event))
+      ROS_INFO("vehicle_node %s: %s", name_.c_str(), line.c_str());
+    if (link_->stopped() && !stop_logged_) {
+      stop_logged_ = true;
+      ROS_WARN("vehicle_node %s: not commanding any more: %s", name_.c_str(),
+               link_->stop_reason().c_str());
+    }
   }
 
   /// Lockstep: answers the pending syncs, in turn, once their measurements are all here.
@@ -226,10 +284,17 @@ class VehicleNode {
   }
 
   void Step(double t) {
-    formation::ControlOutput out = controller_->Control(t);
-    last_setpoint_ = ToSetpoint(out);
-    setpoint_pub_.publish(last_setpoint_);
-    controller_->Diagnose(&out);  // KKT value and cost after the command went out
+    formation::ControlOutput out;
+    if (link_) {
+      out = link_->Step(t);  // sent to the flight controller, diagnosed after
+      last_setpoint_ = ToSetpoint(out);
+      setpoint_pub_.publish(last_setpoint_);
+    } else {
+      out = controller_->Control(t);
+      last_setpoint_ = ToSetpoint(out);
+      setpoint_pub_.publish(last_setpoint_);
+      controller_->Diagnose(&out);  // KKT value and cost after the command went out
+    }
     if (plan_pub_ && controller_->MakePlan(&plan_)) plan_pub_.publish(ToPlan(plan_));
     last_answered_ = t;
     diag_pub_.publish(ToDiagnostics(out, *controller_));
@@ -263,7 +328,12 @@ class VehicleNode {
   std::string frame_;
   int index_ = -1;
   bool lockstep_ = false;
-  std::unique_ptr<formation::VehicleController> controller_;
+  std::unique_ptr<formation::VehicleController> own_controller_;  // without ~link
+  std::unique_ptr<app::OnboardLink> link_;                        // with ~link
+  formation::VehicleController* controller_ = nullptr;            // either's controller
+  bool link_lockstep_ = false;
+  bool stop_logged_ = false;
+  double last_hello_ = -1.0;
   ros::Publisher setpoint_pub_, estimate_pub_, path_pub_, diag_pub_, plan_pub_;
   std::vector<ros::Subscriber> subs_;
   std::vector<ros::Subscriber> plan_subs_;  // cooperative: the formation neighbours' plans
@@ -288,6 +358,7 @@ int main(int argc, char** argv) {
     while (ros::ok()) {
       ros::getGlobalCallbackQueue()->callAvailable(ros::WallDuration(0.001));
       node.Poll();
+      node.PollLink();
     }
   } catch (const std::exception& e) {
     ROS_FATAL("vehicle_node: %s", e.what());
