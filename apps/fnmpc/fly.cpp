@@ -130,8 +130,24 @@ int Fly(const FlyArgs& a) {
   std::signal(SIGINT, OnFlyStopSignal);
   std::signal(SIGTERM, OnFlyStopSignal);
   using Clock = std::chrono::steady_clock;
-  const Clock::time_point start = Clock::now();
+  Clock::time_point start = Clock::now();
   const auto local = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
+  // The mission clock (--clock local) starts when our autopilot is first heard, so the
+  // warm-up and the handshake happen before the take-off whenever fly was started. Until
+  // then, hello every 0.5 s (a UDP endpoint learns our address from it).
+  if (!options.autopilot_clock) {
+    log.Say("waiting for the autopilot");
+    double last = -1.0;
+    while (g_fly_stop == 0 && link.own_frames() == 0) {
+      if (local() - last >= 0.5) {
+        link.SayHello();
+        last = local();
+      }
+      link.Poll(0.05, 0.0);
+    }
+    start = Clock::now();
+    if (g_fly_stop == 0) log.Say("autopilot heard: mission clock started");
+  }
   const double ts = sc.rti.sample_time;
   // Without a stop, the flight ends this long after the scenario's end (landing takes time).
   const double end = sc.duration + 30.0;

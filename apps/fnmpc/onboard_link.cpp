@@ -89,6 +89,7 @@ bool OnboardLink::Poll(double timeout, double now) {
 
 double OnboardLink::tick_time() const { return impl_->onboard.tick_time(); }
 long OnboardLink::ticks() const { return impl_->onboard.ticks(); }
+long OnboardLink::own_frames() const { return impl_->onboard.own_frames(); }
 
 const formation::ControlOutput& OnboardLink::Step(double t) {
   impl_->last = &impl_->onboard.Step(t, &impl_->out);

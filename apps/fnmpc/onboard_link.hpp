@@ -38,6 +38,8 @@ class OnboardLink {
   bool Poll(double timeout, double now);
   [[nodiscard]] double tick_time() const;
   [[nodiscard]] long ticks() const;
+  /// Frames received from the vehicle's own autopilot (its system id).
+  [[nodiscard]] long own_frames() const;
   /// One control step at `t`: controller, take-off gate, setpoint, session; sends what the
   /// session wants sent, then the step's diagnostics (KKT, cost). Returns the control output.
   const formation::ControlOutput& Step(double t);

@@ -58,6 +58,7 @@ OnboardVehicle::OnboardVehicle(const formation::ControllerConfig& controller,
 bool OnboardVehicle::OnFrame(const mavlink::Frame& frame, double now) {
   session_.OnFrame(frame, now);
   if (frame.header.system_id != own_system_) return false;
+  ++own_frames_;
   const double remote = StampOf(frame.message);
   double offset = 0.0;
   if (clock_ == OnboardClock::kLocal) {

@@ -77,6 +77,8 @@ class OnboardVehicle {
   formation::VehicleController& controller() { return controller_; }
   [[nodiscard]] long measurements() const { return measurements_; }
   [[nodiscard]] long ticks() const { return ticks_; }
+  /// Frames received from our own system (the vehicle's autopilot).
+  [[nodiscard]] long own_frames() const { return own_frames_; }
 
  private:
   formation::VehicleController controller_;
@@ -89,7 +91,7 @@ class OnboardVehicle {
   OnboardStop stop_ = OnboardStop::kNone;
   bool was_active_ = false;  // the session has flown our setpoints (the take-off gate is past)
   OnboardStep last_;
-  long measurements_ = 0, ticks_ = 0;
+  long measurements_ = 0, ticks_ = 0, own_frames_ = 0;
 };
 
 }  // namespace fnmpc::app
