@@ -12,6 +12,9 @@ set(CMAKE_CXX_COMPILER aarch64-linux-gnu-g++)
 # find_package and find_library look in lib/aarch64-linux-gnu (never the build machine's
 # lib/x86_64-linux-gnu).
 set(CMAKE_LIBRARY_ARCHITECTURE aarch64-linux-gnu)
+# GCC's notes that the passing of some aggregates changed in GCC 10.1 (-Wpsabi) concern only
+# linking with objects of GCC 9 or older; everything here is built by one compiler.
+set(CMAKE_CXX_FLAGS_INIT "-Wno-psabi")
 find_program(FNMPC_QEMU_AARCH64 qemu-aarch64)
 if(NOT FNMPC_QEMU_AARCH64)
   find_program(FNMPC_QEMU_AARCH64 qemu-aarch64-static)

@@ -54,7 +54,8 @@ struct StageQp {
       std::array<int, kNx> xc;
       std::array<double, kNx> xv;
       std::array<int, kNu> uc;
-      std::array<double, kNu> uv;
+      // Zeroed for GCC 12 on aarch64 (-Wmaybe-uninitialized): entries past nu are never read.
+      std::array<double, kNu> uv{};
       for (int a : x_cols[r]) {
         const double ya = jx(r, a);
         q_vec[k][a] += ya * wr[r];

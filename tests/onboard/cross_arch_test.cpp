@@ -18,11 +18,15 @@
 namespace fnmpc::onboard_testing {
 namespace {
 
+// Tolerances: the largest differences measured (cross_arch_test under qemu-aarch64)
+// between x86-64 (Release, x86-64-v3) and aarch64 (Release and -O2, armv8-a) were 2e-15 m in
+// the tracking error and 2e-12 in the KKT value, with equal QP iterations everywhere.
 // Tracking error after a step [m]: absolute.
-constexpr double kErrorTolerance = 1e-6;
-// KKT value after a step: absolute plus relative.
-constexpr double kKktAbsTolerance = 1e-8;
-constexpr double kKktRelTolerance = 1e-4;
+constexpr double kErrorTolerance = 1e-9;
+// KKT value after a step: absolute plus relative (KKT values near 1e-10 differ by their whole
+// size, since they are rounding-level residuals themselves).
+constexpr double kKktAbsTolerance = 1e-9;
+constexpr double kKktRelTolerance = 1e-6;
 // QP active-set changes per step: equal.
 
 std::vector<CrossArchRow> ReadReference(const std::string& path) {
@@ -58,7 +62,7 @@ TEST(CrossArchTest, ClosedLoopsAgreeWithTheX86Reference) {
   const std::vector<CrossArchRow> got = ComputeCrossArchRows();
   ASSERT_EQ(got.size(), ref.size());
   // Then every sampled step agrees to the tolerances
-  double worst_error = 0, worst_kkt_rel = 0;
+  double worst_error = 0, worst_kkt = 0;
   int qp_mismatches = 0;
   for (std::size_t i = 0; i < ref.size(); ++i) {
     const CrossArchRow& a = ref[i];
@@ -72,14 +76,13 @@ TEST(CrossArchTest, ClosedLoopsAgreeWithTheX86Reference) {
         << where;
     EXPECT_EQ(a.qp_iterations, b.qp_iterations) << where;
     worst_error = std::max(worst_error, std::abs(a.error_m - b.error_m));
-    worst_kkt_rel =
-        std::max(worst_kkt_rel, std::abs(a.kkt - b.kkt) / std::max(std::abs(a.kkt), 1e-300));
+    worst_kkt = std::max(worst_kkt, std::abs(a.kkt - b.kkt));
     qp_mismatches += a.qp_iterations != b.qp_iterations ? 1 : 0;
   }
   std::printf(
-      "cross-arch: %zu rows, largest |error_m difference| %.3g m, largest relative KKT "
-      "difference %.3g, %d QP-iteration mismatches\n",
-      ref.size(), worst_error, worst_kkt_rel, qp_mismatches);
+      "cross-arch: %zu rows, largest |error_m difference| %.3g m, largest |KKT "
+      "difference| %.3g, %d QP-iteration mismatches\n",
+      ref.size(), worst_error, worst_kkt, qp_mismatches);
 }
 
 TEST(CrossArchTest, TheComparisonSeesADifferentLoop) {
