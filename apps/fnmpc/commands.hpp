@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 #include <cmath>
+#include <csignal>
 #include <cstdlib>
 #include <functional>
 #include <stdexcept>
@@ -46,6 +47,21 @@ class Interrupted : public std::runtime_error {
 
  private:
   int code_;
+};
+
+/// The signal (SIGINT, SIGTERM) that asked the running command to stop, 0 while none came.
+extern volatile std::sig_atomic_t g_stop_signal;
+
+/// While it lives, SIGINT and SIGTERM set g_stop_signal (cleared on entry) instead of killing
+/// the process, so the command can finish its step and write what it has; the default
+/// actions after Restore() or the end of the scope.
+class StopSignalScope {
+ public:
+  StopSignalScope();
+  ~StopSignalScope() { Restore(); }
+  void Restore();
+  StopSignalScope(const StopSignalScope&) = delete;
+  StopSignalScope& operator=(const StopSignalScope&) = delete;
 };
 
 /// A subcommand registers itself with a CLI11 sub-app and the function that runs it.

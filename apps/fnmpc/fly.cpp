@@ -7,7 +7,6 @@
 #include <fmt/core.h>
 
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -25,9 +24,6 @@
 
 namespace fnmpc::app {
 namespace {
-
-volatile std::sig_atomic_t g_fly_stop = 0;
-extern "C" void OnFlyStopSignal(int signo) { g_fly_stop = signo; }
 
 struct FlyArgs {
   std::string vehicle;
@@ -126,9 +122,7 @@ int Fly(const FlyArgs& a) {
                     link.ready_time(), link.scenario_takeoff_time()));
   }
 
-  g_fly_stop = 0;
-  std::signal(SIGINT, OnFlyStopSignal);
-  std::signal(SIGTERM, OnFlyStopSignal);
+  StopSignalScope stop_scope;
   using Clock = std::chrono::steady_clock;
   Clock::time_point start = Clock::now();
   const auto local = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
@@ -138,7 +132,7 @@ int Fly(const FlyArgs& a) {
   if (!options.autopilot_clock) {
     log.Say("waiting for the autopilot");
     double last = -1.0;
-    while (g_fly_stop == 0 && link.own_frames() == 0) {
+    while (g_stop_signal == 0 && link.own_frames() == 0) {
       if (local() - last >= 0.5) {
         link.SayHello();
         last = local();
@@ -146,7 +140,7 @@ int Fly(const FlyArgs& a) {
       link.Poll(0.05, 0.0);
     }
     start = Clock::now();
-    if (g_fly_stop == 0) log.Say("autopilot heard: mission clock started");
+    if (g_stop_signal == 0) log.Say("autopilot heard: mission clock started");
   }
   const double ts = sc.rti.sample_time;
   // Without a stop, the flight ends this long after the scenario's end (landing takes time).
@@ -160,7 +154,7 @@ int Fly(const FlyArgs& a) {
     ++steps;
   };
   bool lockstep_lost = false;
-  while (g_fly_stop == 0) {
+  while (g_stop_signal == 0) {
     if (!options.autopilot_clock) {
       link.Poll(std::max(0.0, next - local()), local());
       t = local();
@@ -195,8 +189,7 @@ int Fly(const FlyArgs& a) {
     if (t >= end) break;
   }
   if (!link.stopped()) link.Stop(t);
-  std::signal(SIGINT, SIG_DFL);
-  std::signal(SIGTERM, SIG_DFL);
+  stop_scope.Restore();
   log.Events(&link);
 
   nlohmann::json summary = link.Summary();
@@ -213,7 +206,7 @@ int Fly(const FlyArgs& a) {
   WriteFileAtomically(PathInside(dir, "fly-summary.json"), summary.dump(2) + "\n");
   log.Say(fmt::format("stopped: {}; {} steps, {} overruns; log {}", link.stop_reason(), steps,
                       overruns, dir));
-  if (g_fly_stop != 0) return 128 + static_cast<int>(g_fly_stop);
+  if (g_stop_signal != 0) return 128 + static_cast<int>(g_stop_signal);
   if (lockstep_lost) {
     fmt::print(stderr, "fnmpc fly: {}\n", summary["error"].get<std::string>());
     return kExitError;

@@ -6,7 +6,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <csignal>
 #include <ctime>
 #include <filesystem>
 #include <memory>
@@ -22,10 +21,6 @@
 
 namespace fnmpc::app {
 namespace {
-
-/// The signal that asked the run to stop (SIGINT, SIGTERM), 0: none.
-volatile std::sig_atomic_t g_stop_signal = 0;
-extern "C" void OnStopSignal(int signo) { g_stop_signal = signo; }
 
 struct RunArgs {
   std::string scenario;
@@ -107,9 +102,7 @@ int Run(const RunArgs& a) {
   PrepareRunFolder(dir, a.overwrite);
   // Ctrl-C / SIGTERM: the current run finishes its physics step, writes what it has and the
   // folder is marked incomplete.
-  g_stop_signal = 0;
-  std::signal(SIGINT, OnStopSignal);
-  std::signal(SIGTERM, OnStopSignal);
+  StopSignalScope stop_scope;
   RunFolderOptions options;
   options.runs = a.runs;
   options.jobs = a.jobs;
@@ -119,8 +112,7 @@ int Run(const RunArgs& a) {
   options.scenario_file = a.scenario;
   options.stop = &g_stop_signal;
   const nlohmann::json summary = RunFolder(sc, options, dir);
-  std::signal(SIGINT, SIG_DFL);
-  std::signal(SIGTERM, SIG_DFL);
+  stop_scope.Restore();
   bool sim_failed = false;
   for (const auto& r : summary.value("run_summaries", nlohmann::json::array())) {
     sim_failed = sim_failed || r.contains("error");

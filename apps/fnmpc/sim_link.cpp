@@ -8,7 +8,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -37,9 +36,6 @@ namespace {
 
 using autopilot::EmulatedAutopilot;
 using autopilot::FlightMode;
-
-volatile std::sig_atomic_t g_sim_link_stop = 0;
-extern "C" void OnSimLinkStopSignal(int signo) { g_sim_link_stop = signo; }
 
 struct SimLinkArgs {
   std::string scenario;
@@ -131,9 +127,7 @@ int SimLink(const SimLinkArgs& a) {
                  autopilot::SystemIdOf(i), v[i].conn->transport().Describe());
     }
   }
-  g_sim_link_stop = 0;
-  std::signal(SIGINT, OnSimLinkStopSignal);
-  std::signal(SIGTERM, OnSimLinkStopSignal);
+  StopSignalScope stop_scope;
 
   autopilot::Outbox out;
   double t = 0.0;
@@ -155,7 +149,7 @@ int SimLink(const SimLinkArgs& a) {
   };
   // Every onboard computer says hello first (our UDP side learns its address from it).
   const Clock::time_point wait_start = Clock::now();
-  while (g_sim_link_stop == 0) {
+  while (g_stop_signal == 0) {
     bool all = true;
     for (int i = 0; i < nv; ++i) {
       if (!v[i].connected) poll(i, 0.01);
@@ -188,7 +182,7 @@ int SimLink(const SimLinkArgs& a) {
   const Clock::time_point start = Clock::now();
   int next_progress = 0;
   long measurements_sent = 0;
-  for (int step = 0; step <= steps && g_sim_link_stop == 0; ++step) {
+  for (int step = 0; step <= steps && g_stop_signal == 0; ++step) {
     t = world.time();
     while (world.PopMeasurement(&m)) {
       if (m.vehicle < 0 || m.vehicle >= nv || !autopilot::ToMessage(m, &msg)) continue;
@@ -221,7 +215,7 @@ int SimLink(const SimLinkArgs& a) {
       }
       // Lockstep: every onboard computer answers this tick before the world moves on.
       const Clock::time_point asked = Clock::now();
-      while (g_sim_link_stop == 0) {
+      while (g_stop_signal == 0) {
         bool all = true;
         for (int i = 0; i < nv; ++i) {
           poll(i, a.lockstep ? 0.001 : 0.0);
@@ -294,8 +288,7 @@ int SimLink(const SimLinkArgs& a) {
     }
   }
   if (!a.quiet) fmt::print(stderr, "\n");
-  std::signal(SIGINT, SIG_DFL);
-  std::signal(SIGTERM, SIG_DFL);
+  stop_scope.Restore();
 
   nlohmann::json vehicles = nlohmann::json::object();
   double mean_worst = kNaN, steady_worst = kNaN, max_worst = kNaN;
@@ -334,7 +327,7 @@ int SimLink(const SimLinkArgs& a) {
                                   {"lockstep", a.lockstep},
                                   {"seed", seed},
                                   {"duration_s", sc.duration},
-                                  {"complete", g_sim_link_stop == 0},
+                                  {"complete", g_stop_signal == 0},
                                   {"wall_time_s", since(start)},
                                   {"measurements_sent", measurements_sent},
                                   {"formation_window_s", {sc.trajectory_start, sc.landing_time}},
@@ -351,7 +344,7 @@ int SimLink(const SimLinkArgs& a) {
                "vehicle armed, flew and landed: {}\n",
                mean_worst, steady_worst, max_worst, all_flew);
   }
-  if (g_sim_link_stop != 0) return 128 + static_cast<int>(g_sim_link_stop);
+  if (g_stop_signal != 0) return 128 + static_cast<int>(g_stop_signal);
   return all_flew ? kExitOk : kExitRunFailed;
 }
 
