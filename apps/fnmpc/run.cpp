@@ -37,34 +37,10 @@ struct RunArgs {
   std::string downwash;      // "", "on", "off"
   std::string reality;       // "", "on", "off"
   std::string compensation;  // "", or a name of formation::kCompensationChoice
+  std::string shard;         // "", or I/N
+  bool resume = false;
+  std::string timing = "on";
 };
-
-/// Creates `dir` or checks that it is empty; with `overwrite` its contents are removed
-/// first (never the folder itself, so a symlink to it stays).
-void PrepareRunFolder(const std::string& dir, bool overwrite) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
-    throw std::runtime_error(dir + ": exists and is not a folder");
-  }
-  if (fs::is_directory(dir, ec) && !fs::is_empty(dir, ec)) {
-    if (!overwrite) {
-      throw std::runtime_error(dir +
-                               ": run folder is not empty (an earlier run?); use "
-                               "--overwrite to empty it first or choose another -o");
-    }
-    // Only what looks like an earlier run folder is emptied: a mistyped -o (a home or
-    // source folder) must not be wiped.
-    if (!fs::exists(fs::path(dir) / "scenario.yaml") &&
-        !fs::exists(fs::path(dir) / "summary.json")) {
-      throw std::runtime_error(dir +
-                               ": not a run folder of `fnmpc run` (no scenario.yaml or "
-                               "summary.json); --overwrite refuses to empty it");
-    }
-    for (const auto& entry : fs::directory_iterator(dir)) fs::remove_all(entry.path());
-  }
-  fs::create_directories(dir);
-}
 
 /// Threads per run by default: the machine's CPUs shared by the jobs, at least 1.
 int AutoThreads(int jobs) {
@@ -99,10 +75,6 @@ int Run(const RunArgs& a) {
     const std::time_t now = std::time(nullptr);
     dir = fmt::format("runs/{}-{:%Y%m%d-%H%M%S}", sc.name, fmt::localtime(now));
   }
-  PrepareRunFolder(dir, a.overwrite);
-  // Ctrl-C / SIGTERM: the current run finishes its physics step, writes what it has and the
-  // folder is marked incomplete.
-  StopSignalScope stop_scope;
   RunFolderOptions options;
   options.runs = a.runs;
   options.jobs = a.jobs;
@@ -111,6 +83,21 @@ int Run(const RunArgs& a) {
   options.progress = !a.quiet;
   options.scenario_file = a.scenario;
   options.stop = &g_stop_signal;
+  options.timing = a.timing == "on";
+  options.resume = a.resume;
+  if (!a.shard.empty()) options.shard = ParseShard(a.shard);
+  if (options.shard.index >= a.runs) {
+    throw std::invalid_argument(fmt::format("--shard {}: shard {} has no run of --runs {}", a.shard,
+                                            options.shard.index, a.runs));
+  }
+  if (a.resume) {
+    CheckResumable(sc, options, dir);
+  } else {
+    PrepareRunFolder(dir, a.overwrite);
+  }
+  // Ctrl-C / SIGTERM: the current run finishes its physics step, writes what it has and the
+  // folder is marked incomplete.
+  StopSignalScope stop_scope;
   const nlohmann::json summary = RunFolder(sc, options, dir);
   stop_scope.Restore();
   bool sim_failed = false;
@@ -178,6 +165,17 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
                   "wake (plus the neighbours' predicted wakes) or cooperative (plus the "
                   "neighbours' shared plans over the simulated link, block link:; "
                   "docs/scenarios.md)");
+  sub->add_option("--shard", a->shard,
+                  "I/N: fly only the runs r (0-based) with r % N == I, into run-(r+1); join the "
+                  "N shard folders with `fnmpc merge` (docs/campaigns.md)");
+  sub->add_flag("--resume", a->resume,
+                "continue the run folder of an earlier, interrupted attempt of the same command: "
+                "its complete runs are kept, the others flown")
+      ->excludes(sub->get_option("--overwrite"));
+  sub->add_option("--timing", a->timing,
+                  "off: no wall-clock solver times (NaN in the CSVs, null in the summaries), so "
+                  "the folder depends on the seeds alone, byte for byte")
+      ->check(CLI::IsMember({"on", "off"}));
   sub->add_flag("-q,--quiet", a->quiet, "no progress output");
   sub->add_flag("--dry-run", a->dry_run,
                 "check the scenario and print its vehicles (a generated formation expanded, "

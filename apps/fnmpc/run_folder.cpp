@@ -4,9 +4,14 @@
 #include <fmt/core.h>
 
 #include <atomic>
+#include <charconv>
+#include <cmath>
 #include <exception>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <mutex>
+#include <set>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -17,22 +22,152 @@
 namespace fnmpc::app {
 
 namespace {
-double NumberOr(const nlohmann::json& j, const char* key, double fallback) {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+double NumberOr(const json& j, const char* key, double fallback) {
   return j.contains(key) && j[key].is_number() ? j[key].get<double>() : fallback;
 }
 bool Stopped(const RunFolderOptions& o) { return o.stop != nullptr && *o.stop != 0; }
+std::string RunDir(int r) { return fmt::format("run-{:02d}", r + 1); }
+
+std::string ReadText(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw std::runtime_error(path + ": cannot read");
+  return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
+}
+json ReadJson(const std::string& path) {
+  try {
+    return json::parse(ReadText(path));
+  } catch (const json::exception& e) {
+    throw std::runtime_error(path + ": not a summary (" + e.what() + ")");
+  }
+}
+void WriteSummary(const std::string& dir, const json& summary) {
+  WriteFileAtomically(PathInside(dir, "summary.json"),
+                      summary.dump(2, ' ', false, json::error_handler_t::replace) + "\n");
+}
+
+/// A run's summary from an earlier attempt when it finished, else null.
+json FinishedRun(const std::string& dir, int r) {
+  const std::string path = PathInside(PathInside(dir, RunDir(r)), "summary.json");
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return nullptr;
+  json s = json::parse(ReadText(path), nullptr, false);
+  if (s.is_discarded() || !s.value("complete", false) || s.contains("error")) return nullptr;
+  s["dir"] = RunDir(r);
+  return s;
+}
+
+/// The folder's summary from its runs, in run order: the same for RunFolder and the merge.
+json FolderSummary(const json& identity, std::vector<json> runs, int expected, bool stopped,
+                   bool sim_failed) {
+  const std::size_t count = runs.size();
+  json summary = runs.empty() ? json::object() : AggregateRuns(runs);
+  summary.update(identity);
+  summary["complete"] = !stopped && !sim_failed && static_cast<int>(count) == expected &&
+                        summary.value("complete", false);
+  if (stopped) summary["stopped"] = "interrupted";
+  return summary;
+}
+
+const char* const kShardKey = "shard";
 }  // namespace
 
-nlohmann::json RunFolder(const config::ScenarioConfig& sc, const RunFolderOptions& options,
-                         const std::string& dir) {
+Shard ParseShard(const std::string& text) {
+  Shard s;
+  const auto slash = text.find('/');
+  const auto number = [&](std::string_view part, int* v) {
+    const auto [end, ec] = std::from_chars(part.data(), part.data() + part.size(), *v);
+    return ec == std::errc() && end == part.data() + part.size() && !part.empty();
+  };
+  const std::string_view all(text);
+  if (slash == std::string::npos || !number(all.substr(0, slash), &s.index) ||
+      !number(all.substr(slash + 1), &s.count) || s.count < 1 || s.count > 10000 || s.index < 0 ||
+      s.index >= s.count) {
+    throw std::invalid_argument("shard '" + text +
+                                "': expected I/N with 0 <= I < N <= 10000 (e.g. 0/4)");
+  }
+  return s;
+}
+
+void PrepareRunFolder(const std::string& dir, bool overwrite) {
+  std::error_code ec;
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
+    throw std::runtime_error(dir + ": exists and is not a folder");
+  }
+  if (fs::is_directory(dir, ec) && !fs::is_empty(dir, ec)) {
+    if (!overwrite) {
+      throw std::runtime_error(dir +
+                               ": run folder is not empty (an earlier run?); use "
+                               "--overwrite to empty it first, --resume to finish it, or "
+                               "choose another -o");
+    }
+    // Only what looks like an earlier run folder is emptied: a mistyped -o (a home or
+    // source folder) must not be wiped.
+    if (!fs::exists(fs::path(dir) / "scenario.yaml") &&
+        !fs::exists(fs::path(dir) / "summary.json")) {
+      throw std::runtime_error(dir +
+                               ": not a run folder of `fnmpc run` (no scenario.yaml or "
+                               "summary.json); --overwrite refuses to empty it");
+    }
+    for (const auto& entry : fs::directory_iterator(dir)) fs::remove_all(entry.path());
+  }
+  fs::create_directories(dir);
+}
+
+json FolderIdentity(const config::ScenarioConfig& sc, const RunFolderOptions& options) {
+  json id;
+  id["scenario"] = sc.name;
+  id["scenario_file"] = options.scenario_file;
+  id["runs_requested"] = options.runs;
+  id["first_seed"] = options.seed >= 0 ? static_cast<std::uint64_t>(options.seed) : sc.seed;
+  id["duration_s"] = sc.duration;
+  id["reality"] = sc.reality.enabled;
+  id["downwash"] = sc.downwash;
+  id["compensation"] = formation::ToString(sc.compensation);
+  id["timing"] = options.timing;
+  return id;
+}
+
+void CheckResumable(const config::ScenarioConfig& sc, const RunFolderOptions& options,
+                    const std::string& dir) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec) || fs::is_empty(dir, ec)) return;
+  const std::string path = PathInside(dir, "summary.json");
+  if (!fs::is_regular_file(path, ec)) {
+    throw std::runtime_error(dir +
+                             ": not a run folder of `fnmpc run` (no summary.json); "
+                             "--resume needs the folder of an earlier attempt");
+  }
+  const json s = ReadJson(path);
+  json id = FolderIdentity(sc, options);
+  if (!options.shard.whole()) {
+    id[kShardKey] = fmt::format("{}/{}", options.shard.index, options.shard.count);
+  }
+  for (const auto& [key, value] : id.items()) {
+    if (!s.contains(key) || s[key] != value) {
+      throw std::runtime_error(fmt::format(
+          "{}: key '{}': {} in the folder, {} in this command: --resume continues only the "
+          "same experiment",
+          path, key, s.contains(key) ? s[key].dump() : std::string("missing"), value.dump()));
+    }
+  }
+  if (!s.contains(kShardKey) && !options.shard.whole()) {
+    throw std::runtime_error(path + ": key 'shard': missing in the folder");
+  }
+  if (!options.scenario_file.empty() &&
+      ReadText(PathInside(dir, "scenario.yaml")) != ReadText(options.scenario_file)) {
+    throw std::runtime_error(PathInside(dir, "scenario.yaml") + ": differs from " +
+                             options.scenario_file + ": --resume continues only the same scenario");
+  }
+}
+
+json RunFolder(const config::ScenarioConfig& sc, const RunFolderOptions& options,
+               const std::string& dir) {
   if (options.runs < 1) {
     throw std::invalid_argument("RunFolder: runs must be >= 1, got " +
                                 std::to_string(options.runs));
-  }
-  std::filesystem::create_directories(dir);
-  if (!options.scenario_file.empty() && std::filesystem::is_regular_file(options.scenario_file)) {
-    std::filesystem::copy_file(options.scenario_file, PathInside(dir, "scenario.yaml"),
-                               std::filesystem::copy_options::overwrite_existing);
   }
   if (options.threads < 1) {
     throw std::invalid_argument("RunFolder: threads must be >= 1, got " +
@@ -42,42 +177,80 @@ nlohmann::json RunFolder(const config::ScenarioConfig& sc, const RunFolderOption
     throw std::invalid_argument("RunFolder: jobs must be >= 1, got " +
                                 std::to_string(options.jobs));
   }
-  const std::uint64_t seed0 =
-      options.seed >= 0 ? static_cast<std::uint64_t>(options.seed) : sc.seed;
-  // Run r writes only run-NN/ and results[r] (null until it is done); the workers take the next run
-  // index. A run the simulator failed ends the folder after it, as with one job: later runs are not
-  // started, and those already flown are removed below.
-  std::vector<nlohmann::json> results(static_cast<std::size_t>(options.runs));
+  const Shard shard = options.shard;
+  if (shard.count < 1 || shard.index < 0 || shard.index >= shard.count) {
+    throw std::invalid_argument(
+        fmt::format("RunFolder: shard {}/{} is not one of the shards", shard.index, shard.count));
+  }
+  fs::create_directories(dir);
+  if (!options.scenario_file.empty() && fs::is_regular_file(options.scenario_file)) {
+    std::error_code ec;
+    if (!fs::equivalent(options.scenario_file, PathInside(dir, "scenario.yaml"), ec)) {
+      fs::copy_file(options.scenario_file, PathInside(dir, "scenario.yaml"),
+                    fs::copy_options::overwrite_existing);
+    }
+  }
+  json identity = FolderIdentity(sc, options);
+  if (!shard.whole()) identity[kShardKey] = fmt::format("{}/{}", shard.index, shard.count);
+  const std::uint64_t seed0 = identity["first_seed"].get<std::uint64_t>();
+  // This folder's runs (all, or the shard's), in run order; those an earlier attempt finished
+  // are kept. The summary names the experiment from the start, so that an attempt killed
+  // before its end can be resumed.
+  std::vector<int> mine;
+  for (int r = 0; r < options.runs; ++r) {
+    if (shard.Has(r)) mine.push_back(r);
+  }
+  const int n = static_cast<int>(mine.size());
+  std::vector<json> results(static_cast<std::size_t>(n));
+  int kept = 0;
+  if (options.resume) {
+    for (int k = 0; k < n; ++k) {
+      results[static_cast<std::size_t>(k)] = FinishedRun(dir, mine[static_cast<std::size_t>(k)]);
+      kept += results[static_cast<std::size_t>(k)].is_null() ? 0 : 1;
+    }
+    if (options.progress && kept > 0) {
+      fmt::print(stderr, "fnmpc run: resuming {}: {} of {} runs already complete\n", dir, kept, n);
+    }
+  }
+  WriteSummary(dir, FolderSummary(identity, {}, n, true, false));
+  // Run k writes only its run-NN/ and results[k] (null until it is done); the workers take the
+  // next index. A run the simulator failed ends the folder after it, as with one job: later
+  // runs are not started, and those already flown are removed below.
   std::atomic<int> next{0};
-  std::atomic<int> first_failure{options.runs};
+  std::atomic<int> first_failure{n};
   std::mutex print_mutex;
   const auto fly = [&] {
-    for (int r = next++; r < options.runs && r < first_failure && !Stopped(options); r = next++) {
+    for (int k = next++; k < n && k < first_failure && !Stopped(options); k = next++) {
+      if (!results[static_cast<std::size_t>(k)].is_null()) continue;
+      const int r = mine[static_cast<std::size_t>(k)];
       RunOptions o;
       o.seed = seed0 + static_cast<std::uint64_t>(r);
       o.progress = options.progress;
       o.label = fmt::format("[{} run {}/{} seed {}]", sc.name, r + 1, options.runs, o.seed);
       o.stop = options.stop;
       o.threads = options.threads;
-      nlohmann::json s = RunScenario(sc, o, fmt::format("{}/run-{:02d}", dir, r + 1));
-      s["dir"] = fmt::format("run-{:02d}", r + 1);
+      o.timing = options.timing;
+      json s = RunScenario(sc, o, PathInside(dir, RunDir(r)));
+      s["dir"] = RunDir(r);
       const std::lock_guard<std::mutex> lock(print_mutex);
       if (s.contains("error")) {
-        if (r < first_failure) first_failure = r;  // written under the lock only
-        fmt::print(stderr, "fnmpc run: {}: simulation stopped: {}\n", s["dir"].get<std::string>(),
-                   s["error"].get<std::string>());
+        if (k < first_failure) first_failure = k;  // written under the lock only
+        fmt::print(stderr, "fnmpc run: {}: simulation stopped (seed {}): {}\n",
+                   s["dir"].get<std::string>(), o.seed, s["error"].get<std::string>());
       }
       if (options.progress) {
+        const double solver_max = NumberOr(s, "solver_time_max_s", kNaN);
         fmt::print(stderr,
-                   "  {}steady-state formation error {:.4f} m, max {:.3f} m, solver max {:.2f} "
-                   "ms, fallbacks {}, landed safely {}\n",
+                   "  {}steady-state formation error {:.4f} m, max {:.3f} m, solver max {}, "
+                   "fallbacks {}, landed safely {}\n",
                    options.jobs > 1 ? o.label + " " : std::string(),
                    NumberOr(s, "steady_state_formation_error_m", -1.0),
                    NumberOr(s, "max_formation_error_m", -1.0),
-                   1e3 * NumberOr(s, "solver_time_max_s", -1e-3), s["fallbacks"].get<long>(),
-                   s["landed_safely"].get<bool>());
+                   std::isfinite(solver_max) ? fmt::format("{:.2f} ms", 1e3 * solver_max)
+                                             : std::string("not timed"),
+                   s["fallbacks"].get<long>(), s["landed_safely"].get<bool>());
       }
-      results[static_cast<std::size_t>(r)] = std::move(s);
+      results[static_cast<std::size_t>(k)] = std::move(s);
     }
   };
   std::exception_ptr error;  // the first exception of a worker, rethrown after the join
@@ -87,10 +260,10 @@ nlohmann::json RunFolder(const config::ScenarioConfig& sc, const RunFolderOption
     } catch (...) {
       const std::lock_guard<std::mutex> lock(print_mutex);
       if (!error) error = std::current_exception();
-      next = options.runs;  // no new runs
+      next = n;  // no new runs
     }
   };
-  const int threads = std::min(options.jobs, options.runs);
+  const int threads = std::min(options.jobs, std::max(1, n - kept));
   if (threads == 1) {
     worker();
   } else {
@@ -98,31 +271,118 @@ nlohmann::json RunFolder(const config::ScenarioConfig& sc, const RunFolderOption
     for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
   }
   if (error) std::rethrow_exception(error);
-  const bool sim_failed = first_failure < options.runs;
+  const bool sim_failed = first_failure < n;
   // The runs of the folder: from the first on, each done, up to the failed one.
-  std::vector<nlohmann::json> runs;
-  for (int r = 0; r < options.runs; ++r) {
-    const auto k = static_cast<std::size_t>(r);
-    const bool done = !results[k].is_null();
-    if (!done || r > first_failure) {
+  std::vector<json> runs;
+  for (int k = 0; k < n; ++k) {
+    const auto i = static_cast<std::size_t>(k);
+    const bool done = !results[i].is_null();
+    if (!done || k > first_failure) {
       // Flown after the failed run (or not at all): not part of the folder.
       std::error_code ec;
-      if (done) std::filesystem::remove_all(fmt::format("{}/run-{:02d}", dir, r + 1), ec);
+      if (done) fs::remove_all(PathInside(dir, RunDir(mine[i])), ec);
       continue;
     }
-    runs.push_back(std::move(results[k]));
+    runs.push_back(std::move(results[i]));
   }
-  nlohmann::json summary = runs.empty() ? nlohmann::json::object() : AggregateRuns(runs);
-  summary["scenario_file"] = options.scenario_file;
-  summary["runs_requested"] = options.runs;
-  summary["reality"] = sc.reality.enabled;
-  summary["compensation"] = formation::ToString(sc.compensation);
-  summary["complete"] = !Stopped(options) && !sim_failed &&
-                        static_cast<int>(runs.size()) == options.runs &&
-                        summary.value("complete", false);
-  if (Stopped(options)) summary["stopped"] = "interrupted";
-  WriteFileAtomically(PathInside(dir, "summary.json"),
-                      summary.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+  json summary = FolderSummary(identity, std::move(runs), n, Stopped(options), sim_failed);
+  WriteSummary(dir, summary);
+  return summary;
+}
+
+json MergeRunFolders(const std::vector<std::string>& shards, const std::string& out) {
+  if (shards.empty()) throw std::runtime_error("merge: no shard folders given");
+  std::vector<json> summaries;
+  for (const std::string& dir : shards)
+    summaries.push_back(ReadJson(PathInside(dir, "summary.json")));
+  // One experiment: the same identity and scenario file in every shard, every shard once.
+  const json& first = summaries.front();
+  if (!first.contains(kShardKey) || !first[kShardKey].is_string()) {
+    throw std::runtime_error(PathInside(shards.front(), "summary.json") +
+                             ": key 'shard': missing: not a shard folder (fnmpc run --shard)");
+  }
+  const Shard s0 = ParseShard(first[kShardKey].get<std::string>());
+  const std::string scenario_text = ReadText(PathInside(shards.front(), "scenario.yaml"));
+  std::vector<std::string> folder_of(static_cast<std::size_t>(s0.count));
+  json identity;
+  for (const char* key : {"scenario", "scenario_file", "runs_requested", "first_seed", "duration_s",
+                          "reality", "downwash", "compensation", "timing"}) {
+    if (!first.contains(key)) {
+      throw std::runtime_error(PathInside(shards.front(), "summary.json") + ": key '" + key +
+                               "': missing");
+    }
+    identity[key] = first[key];
+  }
+  for (std::size_t i = 0; i < shards.size(); ++i) {
+    const json& s = summaries[i];
+    const std::string path = PathInside(shards[i], "summary.json");
+    const Shard shard = ParseShard(s.value(kShardKey, std::string("missing")));
+    if (shard.count != s0.count) {
+      throw std::runtime_error(fmt::format("{}: key 'shard': {}/{}, but {} is one of {}", path,
+                                           shard.index, shard.count, shards.front(), s0.count));
+    }
+    for (const auto& [key, value] : identity.items()) {
+      if (!s.contains(key) || s[key] != value) {
+        throw std::runtime_error(fmt::format("{}: key '{}': {}, but {} in {}: not one experiment",
+                                             path, key, s.contains(key) ? s[key].dump() : "missing",
+                                             value.dump(), shards.front()));
+      }
+    }
+    if (ReadText(PathInside(shards[i], "scenario.yaml")) != scenario_text) {
+      throw std::runtime_error(PathInside(shards[i], "scenario.yaml") + ": differs from " +
+                               PathInside(shards.front(), "scenario.yaml"));
+    }
+    std::string& slot = folder_of[static_cast<std::size_t>(shard.index)];
+    if (!slot.empty()) {
+      throw std::runtime_error(fmt::format("{}: shard {}/{} given twice (also {})", shards[i],
+                                           shard.index, shard.count, slot));
+    }
+    slot = shards[i];
+  }
+  for (int i = 0; i < s0.count; ++i) {
+    if (folder_of[static_cast<std::size_t>(i)].empty()) {
+      throw std::runtime_error(fmt::format("merge: shard {}/{} is missing", i, s0.count));
+    }
+  }
+  const int total_runs = identity["runs_requested"].get<int>();
+  // Every run there and complete, taken in run order.
+  std::vector<json> runs(static_cast<std::size_t>(total_runs));
+  const std::uint64_t seed0 = identity["first_seed"].get<std::uint64_t>();
+  for (std::size_t i = 0; i < shards.size(); ++i) {
+    for (const json& run : summaries[i].value("run_summaries", json::array())) {
+      const std::string d = run.value("dir", std::string());
+      int r = -1;
+      if (d.size() > 4) std::from_chars(d.data() + 4, d.data() + d.size(), r);
+      if (r < 1 || r > total_runs) {
+        throw std::runtime_error(PathInside(shards[i], "summary.json") + ": run '" + d +
+                                 "' is not one of the experiment's");
+      }
+      runs[static_cast<std::size_t>(r - 1)] = run;
+    }
+  }
+  for (int r = 0; r < total_runs; ++r) {
+    const json& run = runs[static_cast<std::size_t>(r)];
+    const std::string shard = folder_of[static_cast<std::size_t>(r % s0.count)];
+    if (run.is_null() || !run.value("complete", false) || run.contains("error")) {
+      throw std::runtime_error(fmt::format(
+          "merge: {} (seed {}) of shard {}: {}; rerun the shard (fnmpc run ... --resume) "
+          "before merging",
+          RunDir(r), seed0 + static_cast<std::uint64_t>(r), shard,
+          run.is_null()           ? "not flown"
+          : run.contains("error") ? "the simulation stopped: " + run["error"].get<std::string>()
+                                  : std::string("not complete (interrupted)")));
+    }
+  }
+  json summary = FolderSummary(identity, runs, total_runs, false, false);
+  fs::create_directories(out);
+  WriteFileAtomically(PathInside(out, "scenario.yaml"), scenario_text);
+  for (int r = 0; r < total_runs; ++r) {
+    const std::string from =
+        PathInside(folder_of[static_cast<std::size_t>(r % s0.count)], RunDir(r));
+    fs::copy(from, PathInside(out, RunDir(r)),
+             fs::copy_options::recursive | fs::copy_options::overwrite_existing);
+  }
+  WriteSummary(out, summary);
   return summary;
 }
 

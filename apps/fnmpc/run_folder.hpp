@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "fnmpc/config/scenario_yaml.hpp"
 
@@ -12,6 +13,16 @@
 /// per vehicle and a summary.json per run, the aggregated summary.json); shared by the CLI
 /// and the Python module so both produce the same folder for the same seed.
 namespace fnmpc::app {
+
+/// A deterministic slice of a folder's runs: run r (0-based) belongs to shard r % count.
+struct Shard {
+  int index = 0;
+  int count = 1;
+  [[nodiscard]] bool Has(int run) const { return run % count == index; }
+  [[nodiscard]] bool whole() const { return count == 1; }
+};
+/// Parses "I/N" (0 <= I < N <= 10000); std::invalid_argument naming the text otherwise.
+Shard ParseShard(const std::string& text);
 
 struct RunFolderOptions {
   int runs = 1;               ///< runs with seeds seed, seed + 1, ...
@@ -23,7 +34,32 @@ struct RunFolderOptions {
   /// Set (non-zero) from a signal handler to stop: the current run writes what it has and
   /// the summary is marked incomplete ("stopped": "interrupted"). nullptr: never.
   const volatile std::sig_atomic_t* stop = nullptr;
+  /// Fly only this shard's runs; the folder then holds those run-NN/ and a summary with
+  /// "shard": "I/N", to be joined by MergeRunFolders.
+  Shard shard;
+  /// Keep the runs of an earlier, interrupted attempt in the folder whose run-NN/summary.json
+  /// says "complete": true, fly only the others (the folder must be this one's: the caller
+  /// checks with CheckResumable).
+  bool resume = false;
+  bool timing = true;  ///< RunOptions::timing: false for a folder that depends on seeds alone
 };
+
+/// Empties or creates a run folder: `dir` must be new or empty; with `overwrite` the contents
+/// of an earlier run folder (scenario.yaml or summary.json in it) are removed first (never
+/// the folder itself, so a symlink to it stays). std::runtime_error naming `dir` otherwise.
+void PrepareRunFolder(const std::string& dir, bool overwrite);
+
+/// The settings that make two run folders the same experiment (the summary's keys
+/// "scenario", "scenario_file", "runs_requested", "first_seed", "duration_s", "reality",
+/// "downwash", "compensation", "timing"), as RunFolder writes them.
+nlohmann::json FolderIdentity(const config::ScenarioConfig& scenario,
+                              const RunFolderOptions& options);
+
+/// For RunFolderOptions::resume: `dir` must be new, empty, or hold a summary.json with the same
+/// FolderIdentity and shard and a scenario.yaml equal to options.scenario_file byte for byte.
+/// std::runtime_error naming the file and the key that differs otherwise.
+void CheckResumable(const config::ScenarioConfig& scenario, const RunFolderOptions& options,
+                    const std::string& dir);
 
 /// Runs the simulations into the existing folder `dir` (up to `jobs` at a time; the folder
 /// and summary are the same as with one job: each run depends only on its seed) and writes
@@ -33,5 +69,14 @@ struct RunFolderOptions {
 /// on runs < 1, jobs < 1 or threads < 1 and std::runtime_error when the folder cannot be written.
 nlohmann::json RunFolder(const config::ScenarioConfig& scenario, const RunFolderOptions& options,
                          const std::string& dir);
+
+/// Joins the shard folders of one experiment (RunFolderOptions::shard) into `out` (prepared
+/// by the caller): their run-NN/ copied, scenario.yaml, and the summary.json the unsharded
+/// RunFolder writes for the same runs, so with RunFolderOptions::timing off the folder equals
+/// the unsharded one byte for byte. Throws std::runtime_error, writing nothing, when the
+/// shards are not one experiment (a differing identity key, scenario.yaml, shard count), a
+/// shard is missing or given twice, or a run is missing or not complete (named with its
+/// shard folder and seed). Returns the summary.
+nlohmann::json MergeRunFolders(const std::vector<std::string>& shards, const std::string& out);
 
 }  // namespace fnmpc::app

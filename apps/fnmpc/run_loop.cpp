@@ -216,6 +216,7 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
         if (!killed[i] && ctrl[i]) {
           outs[i] = ctrl[i]->Control(t);
           ctrl[i]->Diagnose(&outs[i]);
+          if (!options.timing) outs[i].solver_time = kNaN;
         }
       });
       if (link) {  // each plan of this step broadcast, in vehicle order (the loss draws' order)
@@ -273,11 +274,11 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
                                                  sc.rti.sample_time))
               ++rec.injected_failures;
             ++L.steps;
-            if (std::isnan(L.first_step_time)) {
+            if (L.steps == 1) {
               L.first_step_time = out.solver_time;
               L.max_thrust_jump_at_switch = std::abs(out.thrust - prev[i].thrust);
             }
-            L.solver_time.push_back(out.solver_time);
+            if (options.timing) L.solver_time.push_back(out.solver_time);
             if (out.solver_time > sc.rti.sample_time) ++L.over_budget;
             if (out.fallback) ++L.fallbacks;
             if (out.status != rti::RtiStatus::kSuccess) ++L.failures;

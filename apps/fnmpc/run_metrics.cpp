@@ -96,7 +96,9 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
       j["solver_time_max_s"] = Num(Max(L.solver_time));
       j["solver_time_first_step_s"] = Num(L.first_step_time);
       j["solver_steps_over_budget_share"] =
-          L.steps > 0 ? static_cast<double>(L.over_budget) / static_cast<double>(L.steps) : 0.0;
+          !options.timing ? json(nullptr)
+          : L.steps > 0   ? json(static_cast<double>(L.over_budget) / static_cast<double>(L.steps))
+                          : json(0.0);
       j["kkt_median"] = Num(Median(L.kkt));
       j["kkt_max"] = Num(Max(L.kkt));
       j["cost_median"] = Num(Median(L.cost));
@@ -369,11 +371,13 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
   s["max_formation_error_m"] = Num(max_worst);
   s["mean_formation_error_flight_m"] = Num(flight_mean_worst);
   s["max_formation_error_flight_m"] = Num(flight_max_worst);
-  s["solver_time_max_s"] = Num(time_max);
-  s["solver_time_max_after_first_step_s"] = Num(time_max_first);
+  s["solver_time_max_s"] = options.timing ? Num(time_max) : json(nullptr);
+  s["solver_time_max_after_first_step_s"] = options.timing ? Num(time_max_first) : json(nullptr);
   s["solver_time_median_s"] = Num(Median(all_times));
   s["solver_steps_over_budget_share"] =
-      nmpc_steps > 0 ? static_cast<double>(over_budget) / static_cast<double>(nmpc_steps) : 0.0;
+      !options.timing  ? json(nullptr)
+      : nmpc_steps > 0 ? json(static_cast<double>(over_budget) / static_cast<double>(nmpc_steps))
+                       : json(0.0);
   s["sample_time_s"] = sc.rti.sample_time;
   s["nmpc_steps"] = nmpc_steps;
   s["fallbacks"] = fallbacks;

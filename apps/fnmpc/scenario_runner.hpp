@@ -37,6 +37,9 @@ struct RunOptions {
   /// Threads flying the vehicles' estimators and controllers of one control step (>= 1); the
   /// run is the same bit for bit whatever the count (timing columns aside).
   int threads = 1;
+  /// false: no wall-clock solver times (NaN in the CSVs, null in the summaries), so the run
+  /// folder depends on the seed alone, bit for bit (`fnmpc run --timing off`).
+  bool timing = true;
   /// When given and set (a signal handler), the run stops after the current physics step,
   /// writes what is complete and returns a summary with "complete": false.
   const volatile std::sig_atomic_t* stop = nullptr;

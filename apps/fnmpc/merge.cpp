@@ -1,0 +1,57 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// `fnmpc merge SHARD_DIR... -o OUT`: joins the shard folders of `fnmpc run --shard I/N` into
+// the run folder the unsharded run writes (docs/campaigns.md).
+#include <fmt/core.h>
+
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "apps/fnmpc/commands.hpp"
+#include "apps/fnmpc/run_folder.hpp"
+
+namespace fnmpc::app {
+namespace {
+
+struct MergeArgs {
+  std::vector<std::string> shards;
+  std::string out;
+  bool overwrite = false;
+};
+
+int Merge(const MergeArgs& a) {
+  std::error_code ec;
+  const bool existed = std::filesystem::exists(a.out, ec);
+  PrepareRunFolder(a.out, a.overwrite);
+  nlohmann::json summary;
+  try {
+    summary = MergeRunFolders(a.shards, a.out);
+  } catch (...) {
+    if (!existed) std::filesystem::remove(a.out, ec);  // refused: leave no empty folder behind
+    throw;
+  }
+  fmt::print("{}\n", a.out);
+  const auto failures = summary.value("failures", nlohmann::json::array());
+  for (const auto& f : failures) {
+    fmt::print(stderr, "fnmpc merge: FAILED {}: vehicle {}: {}\n", f.value("run", std::string()),
+               f.value("vehicle", std::string()), f.value("reason", std::string()));
+  }
+  return failures.empty() ? kExitOk : kExitRunFailed;
+}
+
+void Register(CLI::App& app, std::vector<Command>& registry) {
+  auto a = std::make_shared<MergeArgs>();
+  CLI::App* sub = app.add_subcommand(
+      "merge", "Join the shard folders of `fnmpc run --shard I/N` into one run folder");
+  sub->add_option("shards", a->shards, "the N shard folders, in any order")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  sub->add_option("-o,--out", a->out, "the merged run folder (new or empty)")->required();
+  sub->add_flag("--overwrite", a->overwrite, "empty a non-empty run folder first");
+  registry.push_back({sub, [a] { return Merge(*a); }});
+}
+const RegisterCommand kRegistered(&Register);
+
+}  // namespace
+}  // namespace fnmpc::app
