@@ -3,7 +3,8 @@
 # Installs every Debian (bookworm) package that fnmpc needs to build, test,
 # benchmark and report. Idempotent; run as root (or with sudo available).
 #   scripts/install-deps.sh            core + MuJoCo + Ceres + IPOPT + plotting + Python
-#                                      module + browser replay (Node.js/npm, Chromium)
+#                                      module + browser replay (Node.js/npm, Chromium) +
+#                                      campaigns (Slurm, munge, Dask, Optuna)
 #   scripts/install-deps.sh --with-ros also the ROS 1 packages for ros/
 #   scripts/install-deps.sh --with-aarch64
 #                                      also the aarch64 cross toolchain, qemu-user and the
@@ -21,7 +22,12 @@ packages=(
   python3-matplotlib python3-numpy
   python3-dev pybind11-dev python3-pybind11 python3-pytest
   chromium python3-websocket
+  slurm-wlm munge python3-dask python3-distributed python3-optuna python3-sqlalchemy python3-yaml
 )
+# Campaigns and tuning (docs/campaigns.md): Slurm 22.05 with munge for the single-node test
+# cluster of scripts/slurm-local.sh (the packages' services are not started: no systemd
+# needed), dask.distributed for the dask executor, Optuna with SQLAlchemy (its SQLite storage),
+# PyYAML for the campaign file (tools/campaign.py).
 # The replay viewer is bundled with npm (web/replay). Debian's nodejs and npm only when the
 # machine has no Node.js of its own (a NodeSource nodejs ships npm and conflicts with
 # Debian's npm package); bookworm's Node.js 18 runs the pinned esbuild (node >= 18).
