@@ -335,11 +335,13 @@ class Shard:
 
     def finish(self, rc, duration):
         """Sets the state from fnmpc's exit code and the folder the shard left."""
+        if rc is not None and rc < 0:  # killed by a signal: the shell's convention
+            rc = 128 - rc
         self.exit_code = rc
         self.duration = duration
         if rc in (0, 3) and self.is_complete():
             self.state = "done"
-        elif rc in (130, 143, -2, -15) and stop.signum:
+        elif rc in (130, 143) and stop.signum:
             self.state = "cancelled"
         else:
             self.state = "failed"
@@ -864,6 +866,8 @@ def campaign(args):
     finally:
         record["shards"] = [s.record() for s in shards]
         record["duration_s"] = round(time.monotonic() - t0, 3)
+        if todo:
+            progress.update(force=True)
         progress.end()
         if sys.exc_info()[0] is not None:
             record["state"] = "error"
