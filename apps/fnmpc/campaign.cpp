@@ -54,7 +54,8 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
                   "local (a process per shard on this machine), slurm (a job array through "
                   "sbatch) or dask (dask.distributed: a local cluster or the campaign's "
                   "scheduler)")
-      ->check(CLI::IsMember({"local", "slurm", "dask"}));
+      ->check(CLI::IsMember({"local", "slurm", "dask"}))
+      ->capture_default_str();
   sub->add_option("-o,--out", a->out, "campaign folder (default: the campaign file's `out`)");
   sub->add_option("--script", a->script, "campaign driver")->check(CLI::ExistingFile);
   sub->add_flag("-q,--quiet", a->quiet, "no progress line");

@@ -76,6 +76,7 @@ const char* const kShardKey = "shard";
 
 Shard ParseShard(const std::string& text) {
   Shard s;
+  s.sharded = true;
   const auto slash = text.find('/');
   const auto number = [&](std::string_view part, int* v) {
     const auto [end, ec] = std::from_chars(part.data(), part.data() + part.size(), *v);

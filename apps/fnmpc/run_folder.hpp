@@ -15,11 +15,14 @@
 namespace fnmpc::app {
 
 /// A deterministic slice of a folder's runs: run r (0-based) belongs to shard r % count.
+/// `sharded` false: the whole folder (no "shard" key); a shard 0/1 is a shard folder all the
+/// same (mergeable on its own).
 struct Shard {
   int index = 0;
   int count = 1;
+  bool sharded = false;
   [[nodiscard]] bool Has(int run) const { return run % count == index; }
-  [[nodiscard]] bool whole() const { return count == 1; }
+  [[nodiscard]] bool whole() const { return !sharded; }
 };
 /// Parses "I/N" (0 <= I < N <= 10000); std::invalid_argument naming the text otherwise.
 Shard ParseShard(const std::string& text);

@@ -82,8 +82,8 @@ class RunShardTest : public ::testing::Test {
 TEST_F(RunShardTest, ShardsMergeIntoTheUnshardedFolderByteForByte) {
   // Given the 3 runs flown whole, and as shards 0/2 (runs 1, 3) and 1/2 (run 2),
   const json whole = Fly("whole", {});
-  const json s0 = Fly("s0", {0, 2});
-  const json s1 = Fly("s1", {1, 2});
+  const json s0 = Fly("s0", ParseShard("0/2"));
+  const json s1 = Fly("s1", ParseShard("1/2"));
   EXPECT_EQ(s0["runs"].get<int>(), 2);
   EXPECT_EQ(s1["runs"].get<int>(), 1);
   EXPECT_EQ(s0["shard"], "0/2");
@@ -103,7 +103,7 @@ TEST_F(RunShardTest, ShardsMergeIntoTheUnshardedFolderByteForByte) {
   fs::copy(base_ + "/s0", base_ + "/s0-resumed", fs::copy_options::recursive);
   fs::remove(base_ + "/s0-resumed/run-03/summary.json");
   fs::remove(base_ + "/s0-resumed/run-01/follower1.csv");  // kept: not flown again
-  Fly("s0-resumed", {0, 2}, /*resume=*/true);
+  Fly("s0-resumed", ParseShard("0/2"), /*resume=*/true);
   EXPECT_FALSE(fs::exists(base_ + "/s0-resumed/run-01/follower1.csv"));
   fs::copy(base_ + "/s0/run-01/follower1.csv", base_ + "/s0-resumed/run-01/follower1.csv");
   ExpectSameFolder(base_ + "/s0", base_ + "/s0-resumed");
@@ -116,6 +116,10 @@ TEST_F(RunShardTest, ShardsMergeIntoTheUnshardedFolderByteForByte) {
             std::string::npos);
   EXPECT_NE(MessageOf({base_ + "/whole"}, base_ + "/m3").find("not a shard folder"),
             std::string::npos);
+  // A single shard 0/1 is a shard folder: it merges on its own into the whole folder.
+  Fly("only", ParseShard("0/1"));
+  MergeRunFolders({base_ + "/only"}, base_ + "/only-merged");
+  ExpectSameFolder(base_ + "/whole", base_ + "/only-merged");
   // another experiment (another first seed) in shard 1,
   const auto edited = [&](const std::string& from, const std::string& to, auto&& edit) {
     fs::copy(base_ + from, base_ + to, fs::copy_options::recursive);
@@ -139,9 +143,9 @@ TEST_F(RunShardTest, ShardsMergeIntoTheUnshardedFolderByteForByte) {
 
 TEST_F(RunShardTest, ResumeRefusesAnotherExperimentsFolder) {
   // Given a shard folder of a 20 s experiment,
-  Fly("s1", {1, 2});
+  Fly("s1", ParseShard("1/2"));
   RunFolderOptions o = options_;
-  o.shard = {1, 2};
+  o.shard = ParseShard("1/2");
   o.resume = true;
   EXPECT_NO_THROW(CheckResumable(sc_, o, base_ + "/s1"));
   // then resuming it with another duration, shard or timing is refused, naming the key.
@@ -157,7 +161,7 @@ TEST_F(RunShardTest, ResumeRefusesAnotherExperimentsFolder) {
   shorter.duration = 19.0;
   EXPECT_NE(refusal(shorter, o).find("key 'duration_s'"), std::string::npos);
   RunFolderOptions other = o;
-  other.shard = {0, 2};
+  other.shard = ParseShard("0/2");
   EXPECT_NE(refusal(sc_, other).find("key 'shard'"), std::string::npos);
   other = o;
   other.timing = true;

@@ -1,0 +1,104 @@
+# SPDX-License-Identifier: BSD-3-Clause
+"""`fnmpc tune` (tools/tune.py, docs/campaigns.md "Tuning"): a small real study with Optuna
+and the local executor: trial 0 is the defaults, the report, the tuned weights and the plot
+are written, the held-out scenario is flown with both weight sets on seeds no trial used, a
+rerun continues the study without flying finished evaluations again, and bad input is refused
+naming the file and key (a
+scenario without follower weights is tuned from the struct's defaults, as it flies)."""
+import json
+import os
+import subprocess
+
+import pytest
+import yaml
+
+FNMPC = os.environ["FNMPC"]
+SOURCE = os.environ["FNMPC_SOURCE_DIR"]
+TRIANGLE = os.path.join(SOURCE, "config/scenarios/triangle.yaml")
+HELD_OUT = os.path.join(SOURCE, "config/scenarios/flying-leader-paper.yaml")
+
+
+def tune(out, *extra, trials=2):
+    return subprocess.run(
+        [FNMPC, "tune", TRIANGLE, "--held-out", HELD_OUT, "--trials", str(trials), "--seeds", "1",
+         "--held-out-seeds", "1", "--duration", "20", "-o", str(out), *extra],
+        capture_output=True, text=True, timeout=1200)
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("tune")
+    r = tune(out)
+    return out, r
+
+
+def test_a_study_writes_its_report_weights_and_plot(study):
+    out, r = study
+    assert r.returncode in (0, 3), r.stderr
+    assert r.stdout.strip() == str(out)
+    report = json.load(open(out / "tune.json"))
+    trials = report["trials"]
+    assert [t["number"] for t in trials] == [0, 1]
+    assert all(v == 1.0 for v in trials[0]["params"].values())  # trial 0: the defaults
+    assert any(v != 1.0 for v in trials[1]["params"].values())  # then Optuna's proposal
+    for t in trials:
+        assert t["mean_formation_error_m"] > 0.0
+        assert t["fallbacks"] >= 0
+    assert report["best"]["number"] in (0, 1)
+    (row,) = report["held_out"]
+    assert row["seeds"] == 1
+    assert row["default"]["runs"] == 1 and row["tuned"]["runs"] == 1
+    assert report["held_out_first_seed"] != report["first_seed"]
+    # the progress lines and the held-out verdict
+    assert "trial 2/2" in r.stderr
+    assert "flying-leader-paper.yaml: default" in r.stderr
+    # the tuned weights are the triangle's scaled by the best factors and fly as a scenario
+    w = yaml.safe_load(open(out / "tuned-weights.yaml"))["controller"]["weights"]["follower"]
+    base = yaml.safe_load(open(TRIANGLE))["controller"]["weights"]["follower"]
+    f = report["best"]["factors"]
+    assert w["thrust"] == pytest.approx(base["thrust"] * f["thrust"])
+    assert w["position"][2] == pytest.approx(base["position"][2] * f["position_z"])
+    s = yaml.safe_load(open(TRIANGLE))
+    s["controller"]["weights"]["follower"] = w
+    for k in ("vehicle_file", "sensors_file"):
+        s[k] = os.path.join(SOURCE, "config/scenarios", s[k])
+    tuned = out / "tuned.yaml"
+    yaml.safe_dump(s, open(tuned, "w"))
+    dry = subprocess.run([FNMPC, "run", str(tuned), "--dry-run"], capture_output=True, text=True)
+    assert dry.returncode == 0, dry.stderr
+    assert (out / "history.png").stat().st_size > 1000
+    assert (out / "tune.db").exists()  # the default SQLite storage
+
+
+def test_a_rerun_continues_the_study_without_flying_finished_evaluations(study):
+    out, _ = study
+    merged = out / "trials/fnmpc-tune/trial-000/triangle/campaign/merged/summary.json"
+    before = merged.stat().st_mtime_ns
+    r = tune(out, trials=3)
+    assert r.returncode in (0, 3), r.stderr
+    trials = json.load(open(out / "tune.json"))["trials"]
+    assert [t["number"] for t in trials] == [0, 1, 2]
+    assert merged.stat().st_mtime_ns == before
+    assert "trial 3/3" in r.stderr and "trial 1/3" not in r.stderr
+
+
+def test_bad_input_is_refused_naming_it(tmp_path):
+    r = subprocess.run(
+        [FNMPC, "tune", TRIANGLE, "--held-out", TRIANGLE, "--trials", "2", "-o", str(tmp_path)],
+        capture_output=True, text=True)
+    assert r.returncode == 1
+    assert "held-out scenarios must not be tuned on" in r.stderr
+    # every scenario is checked by fnmpc's own reader before anything flies
+    text = open(TRIANGLE).read().replace("thrust: 0.05, attitude_ref", "thrust: -1, attitude_ref")
+    text = text.replace("../vehicles/", os.path.join(SOURCE, "config/vehicles") + "/")
+    text = text.replace("../sensors/", os.path.join(SOURCE, "config/sensors") + "/")
+    bad = tmp_path / "bad-weight.yaml"
+    bad.write_text(text)
+    r = subprocess.run([FNMPC, "tune", str(bad), "--held-out", HELD_OUT, "--trials", "2",
+                        "-o", str(tmp_path / "o")], capture_output=True, text=True)
+    assert r.returncode == 1
+    assert f"{bad}:" in r.stderr and "thrust" in r.stderr, r.stderr
+    assert not (tmp_path / "o" / "trials").exists()
+    r = subprocess.run([FNMPC, "tune", TRIANGLE, "--held-out", HELD_OUT, "--trials", "1"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2  # CLI range: at least the defaults and one proposal
