@@ -390,15 +390,19 @@ class Progress:
         self.runs_total = sum(len(s.runs) for s in shards)
         self.runs_start = sum(s.done_before for s in shards)
         self.last = None
-        self.last_t = 0.0
+        self.last_t = -1e9
+        self.final = {}
         self.tty = sys.stderr.isatty()
 
     def update(self, force=False):
         if self.quiet:
             return
+        now = time.monotonic()
+        if not force and now - self.last_t < 1:
+            return
         done_shards = sum(s.state in ("done", "skipped") for s in self.shards)
-        runs = sum(s.runs_done() for s in self.shards)
-        elapsed = time.monotonic() - self.t0
+        runs = sum(self.runs_of(s) for s in self.shards)
+        elapsed = now - self.t0
         new = runs - self.runs_start
         if runs >= self.runs_total:
             eta = "00:00"
@@ -407,10 +411,11 @@ class Progress:
         else:
             eta = "--:--"
         key = (done_shards, runs)
-        now = time.monotonic()
-        if not force and key == self.last and (self.tty or now - self.last_t < 30):
-            if not self.tty or now - self.last_t < 1:
-                return
+        if key == self.last:
+            if force and now - self.last_t < 1:
+                return  # said a moment ago
+            if not force and not self.tty and now - self.last_t < 60:
+                return  # a log: a line when something changed, else one a minute
         self.last, self.last_t = key, now
         line = (f"campaign: shards {done_shards}/{len(self.shards)} done, runs "
                 f"{runs}/{self.runs_total}, {fmt_time(elapsed)} elapsed, ETA {eta}")
@@ -418,6 +423,15 @@ class Progress:
             print("\r" + line + "\033[K", end="", file=sys.stderr, flush=True)
         else:
             print(line, file=sys.stderr, flush=True)
+
+    def runs_of(self, shard):
+        """The shard's complete runs; read once more after it ended, then remembered."""
+        if shard in self.final:
+            return self.final[shard]
+        n = shard.runs_done()
+        if shard.state in ("done", "skipped", "failed", "cancelled"):
+            self.final[shard] = n
+        return n
 
     def end(self):
         if not self.quiet and self.tty:
@@ -884,8 +898,9 @@ def campaign(args):
         record["state"] = "failed"
         record["finished"] = datetime.datetime.now().isoformat(timespec="seconds")
         write_record(c, record)
-        for s in failed:  # once more, together, at the end
-            print(s.failure_message(), file=sys.stderr)
+        if len(shards) > 1:
+            for s in failed:  # once more, together, at the end
+                print(s.failure_message(), file=sys.stderr)
         print(f"campaign: {len(failed)} of {len(shards)} shards failed; nothing merged; "
               f"rerun the same command to resume ({out})", file=sys.stderr)
         return EXIT_ERROR
