@@ -285,6 +285,7 @@ def plot_history(report, path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
     trials = report["trials"]
     xs = [t["number"] for t in trials]
     ys = [t.get("mean_formation_error_m") for t in trials]
@@ -300,6 +301,8 @@ def plot_history(report, path):
             best = min(best, t["mean_formation_error_m"])
         curve.append(best)
     ax.step(xs, curve, where="post", color="k", lw=1, label="best so far")
+    ax.set_yscale("log")  # an unstable trial is orders of magnitude off
+    ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
     ax.set_xlabel("trial (0: defaults)")
     ax.set_ylabel("mean formation error [m]")
     ax.legend(fontsize=8)
