@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: BSD-3-Clause
-"""Tunes the followers' NMPC weights with Optuna (docs/campaigns.md, "Tuning").
+"""Tunes the followers' NMPC weights with Optuna (docs/tuning.md).
 
 `fnmpc tune` runs this script. Each trial scales the scenario's own
 `controller.weights.follower` by factors Optuna's TPE sampler proposes, flies every tuning

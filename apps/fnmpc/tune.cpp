@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // `fnmpc tune SCENARIO... --trials N --held-out H...`: tunes the followers' NMPC weights with
-// Optuna, each trial flown through `fnmpc campaign` (docs/campaigns.md, "Tuning");
+// Optuna, each trial flown through `fnmpc campaign` (docs/tuning.md);
 // tools/tune.py drives Optuna.
 #include <csignal>
 #include <filesystem>

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: BSD-3-Clause
-"""`fnmpc tune` (tools/tune.py, docs/campaigns.md "Tuning"): a small real study with Optuna
+"""`fnmpc tune` (tools/tune.py, docs/tuning.md): a small real study with Optuna
 and the local executor: trial 0 is the defaults, the report, the tuned weights and the plot
 are written, the held-out scenario is flown with both weight sets on seeds no trial used, a
 rerun continues the study without flying finished evaluations again, and bad input is refused
