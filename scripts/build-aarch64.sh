@@ -41,7 +41,9 @@ fi
 # machine's libyaml-cpp-dev (not Multi-Arch: same), so it is unpacked here; its library is the
 # installed libyaml-cpp0.7:arm64 (the same files, unpacked too so the CMake files find them).
 mkdir -p "$build"
-deps="$PWD/$build/arm64-deps"
+build=$(cd "$build" && pwd)
+deps="$build/arm64-deps"
+mkdir -p "$deps"
 if [[ ! -f "$deps/usr/lib/aarch64-linux-gnu/cmake/yaml-cpp/yaml-cpp-config.cmake" ]]; then
   tmp=$(mktemp -d)
   (cd "$tmp" && apt-get download -q libyaml-cpp-dev:arm64 libyaml-cpp0.7:arm64)

@@ -13,12 +13,18 @@ instruction per block instead (slower; every executed block is one instruction),
 check of the block-size count.
 
   scripts/onboard-count.py BUILD/apps/fnmpc/fnmpc [--problem L ...] [--scenario nominal ...]
-      [--steps K] [--csv FILE] [--json FILE] [--singlestep]
+      [--steps K] [--csv FILE] [--json FILE] [--singlestep] [--fit-active-set REFERENCE]
+  scripts/onboard-count.py --from-csv FILE [--problem ...] --fit-active-set REFERENCE
 
 Prints one line per problem and scenario: steps counted (step 0, the initial convergence,
 left out as in `fnmpc bench`), median, p99 and maximum instructions per step.
+--fit-active-set joins the counts with the QP active-set changes of the steps sampled in
+REFERENCE (tests/onboard/cross_arch_reference.csv, equal on aarch64: cross_arch_test) and
+prints the least-squares line instructions = a + b * changes; --from-csv reads the counts a
+previous --csv run wrote instead of running qemu.
 """
 import argparse
+import csv
 import json
 import math
 import os
@@ -73,6 +79,34 @@ def count_log(stream, singlestep):
     return steps
 
 
+def fit_active_set(reference, per_step):
+    """Least-squares line of instructions against QP active-set changes, per problem and
+    scenario, over the steps (after step 0) that both the counts and REFERENCE hold."""
+    changes = {}
+    with open(reference) as f:
+        for r in csv.DictReader(f):
+            changes[(r["problem"], r["scenario"], int(r["step"]))] = int(r["qp_iterations"])
+    groups = {}
+    for p, s, k, c in per_step:
+        if k > 0 and (p, s, k) in changes:
+            groups.setdefault((p, s), []).append((changes[(p, s, k)], c))
+    for (p, s), pts in groups.items():
+        n = len(pts)
+        mx = sum(x for x, _ in pts) / n
+        my = sum(y for _, y in pts) / n
+        sxx = sum((x - mx) ** 2 for x, _ in pts)
+        worst = max(pts, key=lambda t: t[1])
+        lo, hi = min(x for x, _ in pts), max(x for x, _ in pts)
+        if sxx == 0:
+            print(f"fit {p} {s}: {n} sampled steps, all with {lo} active-set changes: no line "
+                  f"(every step {my:.0f} instructions on average)")
+            continue
+        b = sum((x - mx) * (y - my) for x, y in pts) / sxx
+        print(f"fit {p} {s}: {n} sampled steps, {lo}..{hi} active-set changes: "
+              f"{my - b * mx:.0f} + {b:.0f} per change; largest sampled count {worst[1]} "
+              f"at {worst[0]} changes")
+
+
 def run(binary, problem, scenario, steps, singlestep):
     with tempfile.TemporaryDirectory() as tmp:
         fifo = os.path.join(tmp, "qemu.log")
@@ -102,7 +136,7 @@ def run(binary, problem, scenario, steps, singlestep):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("binary", help="the aarch64 fnmpc executable")
+    ap.add_argument("binary", nargs="?", help="the aarch64 fnmpc executable")
     ap.add_argument("--problem", action="append", choices=PROBLEMS)
     ap.add_argument("--scenario", action="append", choices=SCENARIOS)
     ap.add_argument("--steps", type=int, default=0, help="control steps per run (default 520)")
@@ -110,8 +144,24 @@ def main():
                     help="one instruction per translated block (the check of the method)")
     ap.add_argument("--csv", help="write every step's count here (problem,scenario,step,insns)")
     ap.add_argument("--json", help="write the summary rows here")
+    ap.add_argument("--fit-active-set", metavar="REFERENCE",
+                    help="fit instructions against the QP active-set changes of REFERENCE")
+    ap.add_argument("--from-csv", metavar="FILE", help="read the counts of a --csv run")
     a = ap.parse_args()
+    if (a.binary is None) == (a.from_csv is None):
+        ap.error("give either the aarch64 fnmpc executable or --from-csv FILE")
     rows, per_step = [], []
+    if a.from_csv:
+        with open(a.from_csv) as f:
+            for r in csv.DictReader(f):
+                if r["problem"] in (a.problem or PROBLEMS) and r["scenario"] in (a.scenario or SCENARIOS):
+                    per_step.append((r["problem"], r["scenario"], int(r["step"]),
+                                     int(r["instructions"])))
+        if not per_step:
+            sys.exit(f"onboard-count: {a.from_csv}: no counts of the problems and scenarios asked for")
+        if a.fit_active_set:
+            fit_active_set(a.fit_active_set, per_step)
+        return
     print(f"{'problem':<11} {'scenario':<10} {'steps':>5} {'med':>9} {'p99':>9} {'max':>9} "
           f"{'step0':>9}", flush=True)
     for scenario in a.scenario or SCENARIOS:
@@ -135,6 +185,8 @@ def main():
     if a.json:
         with open(a.json, "w") as f:
             json.dump(rows, f, indent=2)
+    if a.fit_active_set:
+        fit_active_set(a.fit_active_set, per_step)
 
 
 if __name__ == "__main__":

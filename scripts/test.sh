@@ -3,14 +3,28 @@
 # The whole test suite on a fresh machine: installs the Debian packages (ROS 1 included),
 # builds with AddressSanitizer + UndefinedBehaviorSanitizer, the ROS package in the same
 # tree, and runs every test with ctest (the rostests and install_and_examples, which
-# installs that build and runs examples/ against it, included), then runs the solver's unit
-# tests again in a Debug build with assertions on.
+# installs that build and runs examples/ against it, included), runs the solver's unit
+# tests again in a Debug build with assertions on, and finally cross-builds the onboard
+# parts for aarch64 and runs their tests under qemu-aarch64 (scripts/build-aarch64.sh,
+# docs/onboard.md).
 #   scripts/test.sh [extra ctest arguments for the library suite]
+# Environment: FNMPC_TEST_BUILD_DIR (default build-test), FNMPC_DEBUG_BUILD_DIR (default
+# build-debug), FNMPC_AARCH64_BUILD_DIR (default build-aarch64), FNMPC_TEST_AARCH64=OFF
+# leaves the aarch64 job out (about 12 min of a fresh run; CI always runs it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Debian's ROS and matplotlib need the system python, not a pyenv one first on PATH.
 export PATH=/usr/bin:$PATH
-bash scripts/install-deps.sh --with-ros
+aarch64=${FNMPC_TEST_AARCH64:-ON}
+if [[ $aarch64 != ON && $aarch64 != OFF ]]; then
+  echo "test.sh: FNMPC_TEST_AARCH64 must be ON or OFF, not '$aarch64'" >&2
+  exit 2
+fi
+if [[ $aarch64 == ON ]]; then
+  bash scripts/install-deps.sh --with-ros --with-aarch64
+else
+  bash scripts/install-deps.sh --with-ros
+fi
 build=${FNMPC_TEST_BUILD_DIR:-build-test}
 # -O1 -g1: the sanitizers' recommended optimisation and line tables only (enough for their
 # stack traces); the heavy solver translation units compile in about half the time of
@@ -32,3 +46,9 @@ cmake -S . -B "$debug" -G Ninja -DCMAKE_BUILD_TYPE=Debug -DFNMPC_BUILD_BENCH=OFF
   -DFNMPC_WITH_IPOPT=OFF -DFNMPC_WITH_PYTHON=OFF -DFNMPC_WITH_REPLAY=OFF
 cmake --build "$debug" -j"$(nproc)" --target core_test qp_test ocp_test problem_contract_test
 (cd "$debug" && ctest --output-on-failure -j"$(nproc)" -E "_NOT_BUILT|install_and_examples")
+# The onboard tests cross-built for aarch64 (Release, what flies) under qemu-aarch64: the
+# solver, estimator, MAVLink, link and autopilot tests and tests/onboard (cross_arch_test
+# compares the benchmark closed loops with the x86-64 reference, docs/onboard.md).
+if [[ $aarch64 == ON ]]; then
+  bash scripts/build-aarch64.sh --no-install --test
+fi
