@@ -20,8 +20,8 @@ Prints one line per problem and scenario: steps counted (step 0, the initial con
 left out as in `fnmpc bench`), median, p99 and maximum instructions per step.
 --fit-active-set joins the counts with the QP active-set changes of the steps sampled in
 REFERENCE (tests/onboard/cross_arch_reference.csv, equal on aarch64: cross_arch_test) and
-prints the least-squares line instructions = a + b * changes; --from-csv reads the counts a
-previous --csv run wrote instead of running qemu.
+prints the least-squares line instructions = a + b * changes; --from-csv summarises the
+counts a previous --csv run wrote instead of running qemu.
 """
 import argparse
 import csv
@@ -107,6 +107,16 @@ def fit_active_set(reference, per_step):
               f"at {worst[0]} changes")
 
 
+def read_counts(path):
+    """The per-step counts a --csv run wrote: {(problem, scenario): [(step, count), ...]}."""
+    steps = {}
+    with open(path) as f:
+        for r in csv.DictReader(f):
+            steps.setdefault((r["problem"], r["scenario"]), []).append(
+                (int(r["step"]), int(r["instructions"])))
+    return {key: sorted(v) for key, v in steps.items()}
+
+
 def run(binary, problem, scenario, steps, singlestep):
     with tempfile.TemporaryDirectory() as tmp:
         fifo = os.path.join(tmp, "qemu.log")
@@ -142,7 +152,7 @@ def main():
     ap.add_argument("--steps", type=int, default=0, help="control steps per run (default 520)")
     ap.add_argument("--singlestep", action="store_true",
                     help="one instruction per translated block (the check of the method)")
-    ap.add_argument("--csv", help="write every step's count here (problem,scenario,step,insns)")
+    ap.add_argument("--csv", help="write every step's count here (problem,scenario,step,instructions)")
     ap.add_argument("--json", help="write the summary rows here")
     ap.add_argument("--fit-active-set", metavar="REFERENCE",
                     help="fit instructions against the QP active-set changes of REFERENCE")
@@ -150,33 +160,31 @@ def main():
     a = ap.parse_args()
     if (a.binary is None) == (a.from_csv is None):
         ap.error("give either the aarch64 fnmpc executable or --from-csv FILE")
-    rows, per_step = [], []
+    problems, scenarios = a.problem or PROBLEMS, a.scenario or SCENARIOS
     if a.from_csv:
-        with open(a.from_csv) as f:
-            for r in csv.DictReader(f):
-                if r["problem"] in (a.problem or PROBLEMS) and r["scenario"] in (a.scenario or SCENARIOS):
-                    per_step.append((r["problem"], r["scenario"], int(r["step"]),
-                                     int(r["instructions"])))
-        if not per_step:
+        recorded = read_counts(a.from_csv)
+        wanted = [(p, s) for s in scenarios for p in problems if (p, s) in recorded]
+        if not wanted:
             sys.exit(f"onboard-count: {a.from_csv}: no counts of the problems and scenarios asked for")
-        if a.fit_active_set:
-            fit_active_set(a.fit_active_set, per_step)
-        return
+        counts_of = lambda p, s: recorded[(p, s)]
+    else:
+        wanted = [(p, s) for s in scenarios for p in problems]
+        counts_of = lambda p, s: list(enumerate(run(a.binary, p, s, a.steps, a.singlestep)))
+    rows, per_step = [], []
     print(f"{'problem':<11} {'scenario':<10} {'steps':>5} {'med':>9} {'p99':>9} {'max':>9} "
           f"{'step0':>9}", flush=True)
-    for scenario in a.scenario or SCENARIOS:
-        for problem in a.problem or PROBLEMS:
-            counts = run(a.binary, problem, scenario, a.steps, a.singlestep)
-            if len(counts) < 2:
-                sys.exit(f"onboard-count: {problem} {scenario}: {len(counts)} steps found")
-            later = counts[1:]
-            row = {"problem": problem, "scenario": scenario, "steps": len(later),
-                   "median": percentile(later, 0.5), "p99": percentile(later, 0.99),
-                   "max": max(later), "step0": counts[0]}
-            rows.append(row)
-            per_step += [(problem, scenario, k, c) for k, c in enumerate(counts)]
-            print(f"{problem:<11} {scenario:<10} {row['steps']:>5} {row['median']:>9} "
-                  f"{row['p99']:>9} {row['max']:>9} {row['step0']:>9}", flush=True)
+    for problem, scenario in wanted:
+        counts = counts_of(problem, scenario)  # (step, instructions)
+        later = [c for k, c in counts if k > 0]
+        if not later:
+            sys.exit(f"onboard-count: {problem} {scenario}: no step after step 0 found")
+        row = {"problem": problem, "scenario": scenario, "steps": len(later),
+               "median": percentile(later, 0.5), "p99": percentile(later, 0.99),
+               "max": max(later), "step0": next((c for k, c in counts if k == 0), "-")}
+        rows.append(row)
+        per_step += [(problem, scenario, k, c) for k, c in counts]
+        print(f"{problem:<11} {scenario:<10} {row['steps']:>5} {row['median']:>9} "
+              f"{row['p99']:>9} {row['max']:>9} {row['step0']:>9}", flush=True)
     if a.csv:
         with open(a.csv, "w") as f:
             f.write("problem,scenario,step,instructions\n")

@@ -20,11 +20,9 @@ if [[ $aarch64 != ON && $aarch64 != OFF ]]; then
   echo "test.sh: FNMPC_TEST_AARCH64 must be ON or OFF, not '$aarch64'" >&2
   exit 2
 fi
-if [[ $aarch64 == ON ]]; then
-  bash scripts/install-deps.sh --with-ros --with-aarch64
-else
-  bash scripts/install-deps.sh --with-ros
-fi
+deps=(--with-ros)
+if [[ $aarch64 == ON ]]; then deps+=(--with-aarch64); fi
+bash scripts/install-deps.sh "${deps[@]}"
 build=${FNMPC_TEST_BUILD_DIR:-build-test}
 # -O1 -g1: the sanitizers' recommended optimisation and line tables only (enough for their
 # stack traces); the heavy solver translation units compile in about half the time of

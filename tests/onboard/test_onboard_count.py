@@ -108,3 +108,13 @@ def test_a_counts_file_without_the_problem_asked_for_is_refused(tmp_path):
                           capture_output=True, text=True)
     assert proc.returncode != 0
     assert "no counts of the problems and scenarios asked for" in proc.stderr
+
+
+def test_a_counts_file_is_summarised_like_a_qemu_run(tmp_path):
+    counts = tmp_path / "counts.csv"
+    # Step 0 is left out of the summary; the steps are read by number, not by line order.
+    write_counts(counts, [("F6", "nominal", 2, 300), ("F6", "nominal", 0, 9000),
+                          ("F6", "nominal", 1, 100), ("F6", "nominal", 3, 200)])
+    out = subprocess.run([sys.executable, SCRIPT, "--from-csv", str(counts)],
+                         capture_output=True, text=True, check=True).stdout
+    assert out.splitlines()[1].split() == ["F6", "nominal", "3", "200", "300", "300", "9000"]
