@@ -43,7 +43,7 @@ struct OnboardLink::Impl {
   Impl(const formation::ControllerConfig& c, int vehicle, const OnboardLinkOptions& o,
        const autopilot::SessionSettings& s)
       : settings(s),
-        ready(s.warmup + OnboardVehicle::kHandshakeAllowance),
+        ready(s.handshake_time),
         scenario_takeoff(c.takeoff_time),
         conn(link::OpenTransport(link::ParseLinkAddress(o.link)),
              static_cast<std::uint8_t>(s.system_id), static_cast<std::uint8_t>(s.component_id)),
@@ -51,6 +51,9 @@ struct OnboardLink::Impl {
                 o.autopilot_clock ? OnboardClock::kAutopilot : OnboardClock::kLocal),
         autopilot_clock(o.autopilot_clock) {
     (void)vehicle;
+    // Listen mode answers only the flight controller (never a bridge or junk on the port).
+    conn.ExpectPeer(static_cast<std::uint8_t>(s.target_system),
+                    static_cast<std::uint8_t>(s.target_component));
   }
   void Send() {
     for (const mavlink::Message& m : out) conn.Send(m);

@@ -45,13 +45,14 @@ OnboardVehicle::OnboardVehicle(const formation::ControllerConfig& controller,
       session_(session),
       clock_(clock),
       own_system_(static_cast<std::uint8_t>(session.target_system)) {
-  const double ready = session.warmup + kHandshakeAllowance;
+  const double ready = session.handshake_time;
   if (controller.takeoff_time < ready) {
     throw std::invalid_argument(
         "take-off at " + std::to_string(controller.takeoff_time) +
         " s leaves the autopilot handshake too little time: phases.takeoff_time must be >= " +
-        std::to_string(ready) + " s (link warmup " + std::to_string(session.warmup) +
-        " s + 1 s for the mode request and arming)");
+        std::to_string(ready) +
+        " s (link handshake_time: the warm-up, the mode request and arming confirmed by the "
+        "autopilot's 1 Hz HEARTBEATs)");
   }
 }
 

@@ -47,12 +47,8 @@ struct OnboardStep {
 
 class OnboardVehicle {
  public:
-  /// Time the handshake needs after the warm-up: the mode request, arming and their ACKs (a
-  /// few link round trips, with one resend), with a margin [s].
-  static constexpr double kHandshakeAllowance = 1.0;
-
   /// `controller.takeoff_time` must leave the session time for its handshake (warm-up plus
-  /// kHandshakeAllowance): throws std::invalid_argument naming both otherwise.
+  /// the session's handshake_time): throws std::invalid_argument naming both otherwise.
   OnboardVehicle(const formation::ControllerConfig& controller,
                  const autopilot::SessionSettings& session, OnboardClock clock);
 

@@ -194,7 +194,14 @@ int SimLink(const SimLinkArgs& a) {
       for (int i = 0; i < nv; ++i) {
         truth[i] = world.GetTrueState(i);
         positions[i] = truth[i].position;
-        v[i].autopilot->Step(t, &out);
+        // What the autopilot's land detector sees (its estimates; here the truth).
+        autopilot::LandDetectorInput motion;
+        motion.vertical_speed = truth[i].velocity.z();
+        motion.horizontal_speed = truth[i].velocity.head<2>().norm();
+        motion.tilt_rate = truth[i].body_rates.head<2>().norm();
+        motion.acceleration =
+            truth[i].acceleration.allFinite() ? truth[i].acceleration.norm() : 0.0;
+        v[i].autopilot->Step(t, &out, motion);
         // The control tick: the autopilot's attitude, stamped with the simulation time.
         const Eigen::Quaterniond q = mavlink::EnuFluToNedFrd(Eigen::Quaterniond(
             RotationZyx(truth[i].euler.x(), truth[i].euler.y(), truth[i].euler.z())));

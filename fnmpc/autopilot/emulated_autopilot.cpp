@@ -24,13 +24,30 @@ std::string_view ToString(EmulatorEvent event) {
       return "setpoint_lost";
     case EmulatorEvent::kUnknownCommand:
       return "unknown_command";
+    case EmulatorEvent::kDisarmRefused:
+      return "disarm_refused";
+    case EmulatorEvent::kLandDisarmed:
+      return "land_disarmed";
+    case EmulatorEvent::kPilotMode:
+      return "pilot_mode";
   }
   return "?";
 }
 
 EmulatedAutopilot::EmulatedAutopilot(const EmulatedAutopilotSettings& settings)
-    : settings_(settings) {
+    : settings_(settings), land_detector_(settings.autopilot, settings.land_detector) {
   CheckLimits(settings_, "EmulatedAutopilotSettings");
+}
+
+void EmulatedAutopilot::Disarmed(double now, EmulatorEvent why) {
+  armed_ = false;
+  land_detector_.Reset();
+  Note(why, now);
+}
+
+void EmulatedAutopilot::SelectMode(FlightMode mode, double now) {
+  mode_ = mode;
+  Note(EmulatorEvent::kPilotMode, now);
 }
 
 void EmulatedAutopilot::Note(EmulatorEvent e, double now) {
@@ -77,7 +94,7 @@ void EmulatedAutopilot::OnFrame(const mavlink::Frame& frame, double now, Outbox*
     bool ok = want != FlightMode::kOther && !failsafe_;
     // PX4 enters OFFBOARD only with a setpoint stream already running.
     if (ok && want == FlightMode::kOffboard && settings_.autopilot == AutopilotKind::kPx4) {
-      ok = StreamAlive(now) && now - stream_start_ >= settings_.offboard_warmup - 1e-9;
+      ok = StreamAlive(now) && now - stream_start_ > settings_.offboard_warmup;
     }
     if (ok) {
       mode_ = want;
@@ -93,8 +110,19 @@ void EmulatedAutopilot::OnFrame(const mavlink::Frame& frame, double now, Outbox*
   }
   if (cmd->command == mav::kCmdComponentArmDisarm) {
     if (cmd->param1 == 0.0F) {
-      armed_ = false;
-      Note(EmulatorEvent::kDisarmed, now);
+      // Not forced (param2 21196 is the documented emergency force; we never send it).
+      const bool forced = cmd->param2 == 21196.0F;
+      if (armed_ && !forced && !land_detector_.disarm_allowed()) {
+        // PX4 Commander: "Disarming denied: not landed" (TEMPORARILY_REJECTED); ArduPilot:
+        // not land_complete (FAILED).
+        Note(EmulatorEvent::kDisarmRefused, now);
+        Ack(frame, cmd->command,
+            settings_.autopilot == AutopilotKind::kPx4 ? mav::kResultTemporarilyRejected
+                                                       : mav::kResultFailed,
+            out);
+        return;
+      }
+      if (armed_) Disarmed(now, EmulatorEvent::kDisarmed);
       Ack(frame, cmd->command, mav::kResultAccepted, out);
       return;
     }
@@ -104,6 +132,7 @@ void EmulatedAutopilot::OnFrame(const mavlink::Frame& frame, double now, Outbox*
     }
     if (ok) {
       armed_ = true;
+      land_detector_.Reset();
       Note(EmulatorEvent::kArmed, now);
     } else {
       Note(EmulatorEvent::kArmRejected, now);
@@ -115,13 +144,20 @@ void EmulatedAutopilot::OnFrame(const mavlink::Frame& frame, double now, Outbox*
   Ack(frame, cmd->command, mav::kResultUnsupported, out);
 }
 
-void EmulatedAutopilot::Step(double now, Outbox* out) {
+void EmulatedAutopilot::Step(double now, Outbox* out, const LandDetectorInput& motion) {
   if (armed_ && mode_ == FlightMode::kOffboard && !failsafe_ &&
       !(now - setpoint_time_ <= settings_.setpoint_timeout)) {
     failsafe_ = true;
     failsafe_time_ = now;
     mode_ = FlightMode::kLand;
     Note(EmulatorEvent::kSetpointLost, now);
+  }
+  if (armed_) {
+    LandDetectorInput in = motion;
+    const AttitudeSetpoint flying = Flying(now);
+    in.thrust = flying.valid() ? flying.thrust : kNaN;  // its own landing: the simulator's
+    land_detector_.Update(now, in);
+    if (land_detector_.auto_disarm_due(now)) Disarmed(now, EmulatorEvent::kLandDisarmed);
   }
   if (!(now - last_heartbeat_ < settings_.heartbeat_period)) {
     mavlink::Heartbeat hb;
@@ -149,8 +185,7 @@ AttitudeSetpoint EmulatedAutopilot::Flying(double now) const {
 
 void EmulatedAutopilot::Disarm(double now) {
   if (!armed_) return;
-  armed_ = false;
-  Note(EmulatorEvent::kDisarmed, now);
+  Disarmed(now, EmulatorEvent::kDisarmed);
 }
 
 }  // namespace fnmpc::autopilot

@@ -3,6 +3,7 @@
 
 #include <cstdint>
 
+#include "fnmpc/autopilot/land_detector.hpp"
 #include "fnmpc/autopilot/modes.hpp"
 #include "fnmpc/autopilot/outbox.hpp"
 #include "fnmpc/autopilot/setpoint.hpp"
@@ -33,6 +34,8 @@ struct EmulatedAutopilotSettings {
   /// ArduPilot only: GUID_OPTIONS. Bit 3 (8): SET_ATTITUDE_TARGET's thrust is thrust, not a
   /// climb rate. The emulator plays only that meaning: without the bit it refuses to arm.
   int guid_options = 8;
+  /// The land detector that decides whether a disarm by command is accepted.
+  LandDetectorSettings land_detector;
 
   template <class Archive>
   void Serialize(Archive* a) {
@@ -44,6 +47,7 @@ struct EmulatedAutopilotSettings {
     a->Visit("min_setpoint_rate", &min_setpoint_rate, Positive().AtMost(1000.0, "Hz"),
              "[Hz] PX4: the stream's minimum rate");
     a->Visit("guid_options", &guid_options, IntIn(0, 65535), "ArduPilot GUID_OPTIONS");
+    a->Nested("land_detector", &land_detector);
   }
 };
 
@@ -57,6 +61,9 @@ enum class EmulatorEvent : int {
   kDisarmed = 5,        ///< disarmed by command or by Disarm()
   kSetpointLost = 6,    ///< setpoint timeout: failsafe, landing
   kUnknownCommand = 7,  ///< a COMMAND_LONG it does not play: MAV_RESULT_UNSUPPORTED
+  kDisarmRefused = 8,   ///< disarm by command refused: the land detector has not confirmed
+  kLandDisarmed = 9,    ///< PX4: disarmed by itself COM_DISARM_LAND after landed
+  kPilotMode = 10,      ///< the pilot selected a mode (SelectMode)
 };
 std::string_view ToString(EmulatorEvent event);
 
@@ -67,8 +74,11 @@ class EmulatedAutopilot {
   /// A frame from the link: SET_ATTITUDE_TARGET to this system (stored), COMMAND_LONG
   /// (answered with COMMAND_ACK into `out`). Others are ignored.
   void OnFrame(const mavlink::Frame& frame, double now, Outbox* out);
-  /// HEARTBEAT when due, and the setpoint-loss failsafe.
-  void Step(double now, Outbox* out);
+  /// HEARTBEAT when due, the setpoint-loss failsafe and the land detector, fed with what the
+  /// vehicle does (`motion`: its speeds and rates; the thrust is the setpoint flown).
+  void Step(double now, Outbox* out, const LandDetectorInput& motion = {});
+  /// The pilot (or a ground station) selects `mode` by its own means (RC switch): no ACK.
+  void SelectMode(FlightMode mode, double now);
   /// The setpoint it flies at `now`: the last one received while armed in OFFBOARD /
   /// GUIDED_NOGPS and not lost; invalid otherwise (disarmed, other mode, failsafe).
   [[nodiscard]] AttitudeSetpoint Flying(double now) const;
@@ -86,6 +96,7 @@ class EmulatedAutopilot {
  private:
   void Ack(const mavlink::Frame& frame, std::uint16_t command, std::uint8_t result, Outbox* out);
   void Note(EmulatorEvent e, double now);
+  void Disarmed(double now, EmulatorEvent why);
   [[nodiscard]] bool StreamAlive(double now) const;
 
   EmulatedAutopilotSettings settings_;
@@ -97,6 +108,7 @@ class EmulatedAutopilot {
   double setpoint_time_ = kNaN;  // last SET_ATTITUDE_TARGET [s]
   double stream_start_ = kNaN;   // start of the current setpoint stream [s]
   double last_heartbeat_ = kNaN;
+  LandDetector land_detector_;
   EmulatorEvent event_ = EmulatorEvent::kNone;
   double event_time_ = kNaN;
 };

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <variant>
 
 namespace fnmpc::autopilot {
@@ -10,6 +11,11 @@ namespace fnmpc::autopilot {
 void SessionSettings::Validate() const {
   SessionSettings copy = *this;
   CheckLimits(copy, "SessionSettings");
+  if (handshake_time < warmup + 1.0) {
+    throw std::invalid_argument(
+        "[SessionSettings] handshake_time must be at least warmup + 1 s (the mode request and "
+        "arming after the warm-up)");
+  }
 }
 
 std::string_view ToString(SessionState state) {
@@ -56,6 +62,8 @@ std::string_view ToString(SessionReason reason) {
       return "wrong_autopilot";
     case SessionReason::kRequested:
       return "requested";
+    case SessionReason::kDisarmRefused:
+      return "disarm_refused";
   }
   return "?";
 }
@@ -65,7 +73,7 @@ AutopilotSession::AutopilotSession(const SessionSettings& settings) : settings_(
 }
 
 bool AutopilotSession::streaming() const {
-  return state_ >= SessionState::kWarmingUp && state_ <= SessionState::kActive;
+  return state_ >= SessionState::kWarmingUp && state_ <= SessionState::kDisarming;
 }
 
 bool AutopilotSession::finished() const {
@@ -96,10 +104,20 @@ bool AutopilotSession::PopEvent(SessionEvent* event) {
 }
 
 void AutopilotSession::OnFrame(const mavlink::Frame& frame, double now) {
-  if (frame.header.system_id != settings_.target_system || finished()) return;
+  // Only the flight controller itself: a motion-capture bridge or a camera on the same
+  // system id must not keep its watchdogs alive or answer its commands.
+  if (frame.header.system_id != settings_.target_system ||
+      frame.header.component_id != settings_.target_component || finished()) {
+    return;
+  }
   last_frame_ = now;
+  if (state_ == SessionState::kWaitingForAutopilot) {
+    // Setpoints may stream before the first HEARTBEAT (autopilots send it at 1 Hz, their
+    // telemetry at tens of Hz); the mode request waits for it.
+    warmup_start_ = now;
+    Enter(now, SessionState::kWarmingUp, SessionReason::kNone);
+  }
   if (const auto* hb = std::get_if<mavlink::Heartbeat>(&frame.message)) {
-    if (frame.header.component_id != settings_.target_component) return;
     const std::uint8_t expected = settings_.autopilot == AutopilotKind::kPx4
                                       ? mav::kAutopilotPx4
                                       : mav::kAutopilotArduPilotMega;
@@ -111,15 +129,15 @@ void AutopilotSession::OnFrame(const mavlink::Frame& frame, double now) {
     last_heartbeat_ = now;
     mode_ = ModeOf(settings_.autopilot, hb->custom_mode);
     armed_ = (hb->base_mode & mav::kModeFlagSafetyArmed) != 0;
-    if (state_ >= SessionState::kRequestingMode && mode_ == FlightMode::kOffboard) {
-      seen_active_mode_ = true;
+    const bool in_mode = mode_ == FlightMode::kOffboard;
+    if (state_ >= SessionState::kRequestingMode && in_mode) seen_active_mode_ = true;
+    if (state_ >= SessionState::kRequestingMode && armed_ && seen_active_mode_) {
+      seen_armed_ = true;
     }
-    if (state_ >= SessionState::kRequestingMode && armed_) seen_armed_ = true;
     if (state_ == SessionState::kDisarming && !armed_) seen_disarmed_ = true;
-    if (state_ == SessionState::kWaitingForAutopilot) {
-      warmup_start_ = now;
-      Enter(now, SessionState::kWarmingUp, SessionReason::kNone);
-    }
+    // A HEARTBEAT after an accepted command that does not show it: someone else (the pilot,
+    // the autopilot's failsafe) changed the mode or the arming in between; never fight them.
+    if ((mode_accepted_ && !in_mode) || (arm_accepted_ && !armed_)) contradicted_ = true;
     return;
   }
   if (const auto* ack = std::get_if<mavlink::CommandAck>(&frame.message)) OnAck(*ack, now);
@@ -127,8 +145,9 @@ void AutopilotSession::OnFrame(const mavlink::Frame& frame, double now) {
 
 void AutopilotSession::OnAck(const mavlink::CommandAck& ack, double now) {
   if (!pending_.active || ack.command != pending_.command.command) return;
-  // An ACK addressed to another system is not ours (fields 0: a sender that omits them).
+  // Addressed to another system or component: not ours (0: a sender that omits them).
   if (ack.target_system != 0 && ack.target_system != settings_.system_id) return;
+  if (ack.target_component != 0 && ack.target_component != settings_.component_id) return;
   (void)now;
   ack_received_ = true;
   last_ack_result_ = ack.result;
@@ -162,21 +181,38 @@ void AutopilotSession::HandBack(double now, SessionReason reason) {
 
 void AutopilotSession::RequestDisarm(double now) {
   if (state_ != SessionState::kActive) return;
+  disarm_start_ = now;
+  seen_disarmed_ = false;
   Enter(now, SessionState::kDisarming, SessionReason::kNone);
 }
 
 void AutopilotSession::Watchdogs(double now) {
   if (state_ < SessionState::kWarmingUp || finished()) return;
+  const double heartbeat_reference = heard_ ? last_heartbeat_ : warmup_start_;
+  const bool mode_confirmed = seen_active_mode_ && state_ >= SessionState::kArming;
   if (now - last_frame_ > settings_.state_timeout) {
     HandBack(now, SessionReason::kStateStreamLost);
-  } else if (now - last_heartbeat_ > settings_.heartbeat_timeout) {
+  } else if (now - heartbeat_reference > settings_.heartbeat_timeout) {
     HandBack(now, SessionReason::kHeartbeatLost);
-  } else if (state_ == SessionState::kActive && seen_active_mode_ &&
+  } else if (state_ == SessionState::kDisarming && seen_disarmed_) {
+    return;  // done: the handshake ends the session disarmed
+  } else if (contradicted_ && (mode_accepted_ || mode_confirmed) &&
              mode_ != FlightMode::kOffboard) {
     HandBack(now, SessionReason::kModeChanged);
+  } else if (mode_confirmed && mode_ != FlightMode::kOffboard) {
+    HandBack(now, SessionReason::kModeChanged);
+  } else if (contradicted_ && !armed_) {
+    HandBack(now, SessionReason::kDisarmedByAutopilot);
   } else if (state_ == SessionState::kActive && seen_armed_ && !armed_) {
     HandBack(now, SessionReason::kDisarmedByAutopilot);
+  } else if (state_ == SessionState::kDisarming && now - disarm_start_ > settings_.disarm_timeout) {
+    HandBack(now, SessionReason::kDisarmRefused);
   }
+}
+
+double AutopilotSession::ResendAfter() const {
+  // Back-off for lost ACKs: each resend waits half a timeout longer than the one before.
+  return settings_.command_timeout * (1.0 + 0.5 * std::max(0, pending_.sends - 1));
 }
 
 void AutopilotSession::Handshake(double now, Outbox* out) {
@@ -185,7 +221,11 @@ void AutopilotSession::Handshake(double now, Outbox* out) {
   if (pending_.active && ack_received_) {
     ack_received_ = false;
     const std::uint8_t r = last_ack_result_;
-    if (r == mav::kResultInProgress) {
+    if (state_ == SessionState::kDisarming) {
+      // Refused while the land detector has not confirmed (PX4 TEMPORARILY_REJECTED,
+      // ArduPilot FAILED), or accepted: resent at the next timeout until a HEARTBEAT shows
+      // the vehicle disarmed or disarm_timeout passes.
+    } else if (r == mav::kResultInProgress) {
       pending_.sent = now;  // still working: wait another timeout
     } else if (r == mav::kResultTemporarilyRejected) {
       // Retried at the next timeout (below), while sends remain.
@@ -194,30 +234,26 @@ void AutopilotSession::Handshake(double now, Outbox* out) {
       return;
     } else {
       pending_.active = false;
-      switch (state_) {
-        case SessionState::kRequestingMode:
-          Enter(now, armed_ ? SessionState::kActive : SessionState::kArming, SessionReason::kNone,
-                cmd, r);
-          return;
-        case SessionState::kArming:
-          Enter(now, SessionState::kActive, SessionReason::kNone, cmd, r);
-          return;
-        case SessionState::kDisarming:
-          Enter(now, SessionState::kDisarmed, SessionReason::kNone, cmd, r);
-          return;
-        default:
-          return;
-      }
+      if (state_ == SessionState::kRequestingMode) mode_accepted_ = true;
+      if (state_ == SessionState::kArming) arm_accepted_ = true;
+      SessionEvent& e = last_event_of_ack_;
+      e = SessionEvent{now, state_, SessionReason::kNone, cmd, r};
+      has_ack_event_ = true;
     }
   }
-  // What the HEARTBEAT shows counts as done too (an ACK may be lost).
-  if (state_ == SessionState::kRequestingMode && mode_ == FlightMode::kOffboard &&
-      seen_active_mode_) {
-    Enter(now, armed_ ? SessionState::kActive : SessionState::kArming, SessionReason::kNone);
-    return;
+  // Only a HEARTBEAT makes a step done: the mode, then armed in it, then disarmed.
+  if (state_ == SessionState::kRequestingMode && seen_active_mode_) {
+    const std::uint16_t c = has_ack_event_ ? last_event_of_ack_.command : 0;
+    const int r = has_ack_event_ ? last_event_of_ack_.result : -1;
+    has_ack_event_ = false;
+    Enter(now, SessionState::kArming, SessionReason::kNone, c, r);
+    if (!seen_armed_) return;
   }
-  if (state_ == SessionState::kArming && armed_ && seen_armed_) {
-    Enter(now, SessionState::kActive, SessionReason::kNone);
+  if (state_ == SessionState::kArming && seen_armed_ && mode_ == FlightMode::kOffboard) {
+    const std::uint16_t c = has_ack_event_ ? last_event_of_ack_.command : 0;
+    const int r = has_ack_event_ ? last_event_of_ack_.result : -1;
+    has_ack_event_ = false;
+    Enter(now, SessionState::kActive, SessionReason::kNone, c, r);
     return;
   }
   if (state_ == SessionState::kDisarming && seen_disarmed_) {
@@ -229,13 +265,14 @@ void AutopilotSession::Handshake(double now, Outbox* out) {
   float p1 = 0.0F, p2 = 0.0F, p3 = 0.0F;
   switch (state_) {
     case SessionState::kWarmingUp:
-      if (now - warmup_start_ >= settings_.warmup - 1e-9) {
+      if (heard_ && now - warmup_start_ >= settings_.warmup - 1e-9) {
         Enter(now, SessionState::kRequestingMode, SessionReason::kNone);
-        seen_active_mode_ = false;
+        seen_active_mode_ = mode_ == FlightMode::kOffboard;
         Handshake(now, out);
       }
       return;
     case SessionState::kRequestingMode: {
+      if (mode_accepted_) return;  // accepted: the next HEARTBEAT must show it
       const SetModeParams m = SetModeParamsOf(settings_.autopilot, FlightMode::kOffboard);
       want = mav::kCmdDoSetMode;
       p1 = m.base_mode;
@@ -244,19 +281,24 @@ void AutopilotSession::Handshake(double now, Outbox* out) {
       break;
     }
     case SessionState::kArming:
-      if (!settings_.arm) return;  // the pilot arms
+      if (!settings_.arm || arm_accepted_) return;  // the pilot arms / waiting for HEARTBEAT
       want = mav::kCmdComponentArmDisarm;
       p1 = 1.0F;
       break;
     case SessionState::kDisarming:
       want = mav::kCmdComponentArmDisarm;
       p1 = 0.0F;
-      break;
+      if (pending_.active && pending_.command.command == want &&
+          now - pending_.sent < settings_.command_timeout - 1e-9) {
+        return;
+      }
+      SendCommand(now, want, p1, p2, p3, out);
+      return;
     default:
       return;
   }
   if (pending_.active && pending_.command.command == want &&
-      now - pending_.sent < settings_.command_timeout - 1e-9) {
+      now - pending_.sent < ResendAfter() - 1e-9) {
     return;  // waiting for the answer
   }
   if (pending_.active && pending_.command.command == want &&
@@ -282,11 +324,18 @@ void AutopilotSession::Step(double now, const AttitudeSetpoint& setpoint,
   Watchdogs(now);
   Handshake(now, out);
   if (!streaming()) return;
-  if (!setpoint.valid()) {
+  AttitudeSetpoint sp = setpoint;
+  if (state_ == SessionState::kDisarming) {
+    // On the ground: idle thrust and a level attitude until the autopilot's land detector
+    // confirms (its thresholds need the thrust near its minimum and no rotation).
+    sp = AttitudeSetpoint{0.0, 0.0, std::isfinite(last_yaw_) ? last_yaw_ : 0.0, 0.0};
+  }
+  if (!sp.valid()) {
     ++skipped_;
     return;
   }
-  out->Push(ToSetAttitudeTarget(setpoint, time_boot_ms,
+  last_yaw_ = sp.yaw;
+  out->Push(ToSetAttitudeTarget(sp, time_boot_ms,
                                 static_cast<std::uint8_t>(settings_.target_system),
                                 static_cast<std::uint8_t>(settings_.target_component)));
   ++sent_;

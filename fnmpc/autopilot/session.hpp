@@ -28,9 +28,10 @@ struct SessionSettings {
   int system_id = 1;              ///< ours: the vehicle's system id (MAVLink: one per vehicle)
   int component_id = 191;         ///< ours: MAV_COMP_ID_ONBOARD_COMPUTER
   double heartbeat_period = 1.0;  ///< our HEARTBEAT [s] (MAVLink: 1 Hz)
-  /// Setpoints streamed before the mode request [s]. PX4 accepts OFFBOARD only after a
-  /// stream of more than 2 Hz; streaming this long first makes the first request succeed.
-  double warmup = 1.0;
+  /// Setpoints streamed before the mode request [s]. PX4 accepts OFFBOARD only after more
+  /// than 1 s of setpoints at more than 2 Hz (user guide, "Offboard Mode"); 1.5 s makes the
+  /// first request succeed.
+  double warmup = 1.5;
   double command_timeout = 0.5;  ///< wait for a COMMAND_ACK before resending [s]
   int command_attempts = 5;      ///< sends of one command before the session fails
   /// No frame from the flight controller for this long: the link is lost [s].
@@ -40,12 +41,22 @@ struct SessionSettings {
   /// loss within `state_timeout`.
   double heartbeat_timeout = 1.5;
   bool arm = true;  ///< arm by COMMAND_LONG; false: wait for the pilot to arm
+  /// After landing: DISARM is resent every `command_timeout` while the autopilot refuses it
+  /// (its land detector has not confirmed yet), idle thrust and level attitude streamed
+  /// meanwhile, for at most this long [s]; then the session hands back (the autopilot's
+  /// offboard-loss failsafe lands and disarms). PX4 confirms about 0.9 s after idle, ArduPilot
+  /// 1 s (docs/autopilot.md "Landing and disarm").
+  double disarm_timeout = 10.0;
+  /// From the first frame of the flight controller to the session active: the warm-up, the
+  /// first HEARTBEAT, the mode request and arming with their ACKs and the HEARTBEATs that
+  /// confirm them (1 Hz), with resends [s]. `fly` needs the take-off at least this late.
+  double handshake_time = 5.0;
 
   template <class Archive>
   void Serialize(Archive* a) {
     a->Visit("target_system", &target_system, IntIn(1, 255), "flight controller's system id");
-    a->Visit("target_component", &target_component, IntIn(0, 255),
-             "flight controller's component id");
+    a->Visit("target_component", &target_component, IntIn(1, 255),
+             "flight controller's component id (1: MAV_COMP_ID_AUTOPILOT1)");
     a->Visit("system_id", &system_id, IntIn(1, 255), "our system id");
     a->Visit("component_id", &component_id, IntIn(1, 255),
              "our component id (191: onboard computer)");
@@ -62,6 +73,10 @@ struct SessionSettings {
     a->Visit("heartbeat_timeout", &heartbeat_timeout, Positive().AtLeast(1.0, "s"),
              "[s] no HEARTBEAT this long: link lost (autopilots send it at 1 Hz)");
     a->Visit("arm", &arm, AnyValue(), "arm by command; false: wait for the pilot to arm");
+    a->Visit("disarm_timeout", &disarm_timeout, Positive().AtMost(120.0, "s"),
+             "[s] after landing: keep asking to disarm (idle, level) this long");
+    a->Visit("handshake_time", &handshake_time, Positive().AtMost(60.0, "s"),
+             "[s] allowance from the first autopilot frame to active (take-off no earlier)");
   }
   /// Throws std::invalid_argument naming the field of a value Serialize's limits reject.
   void Validate() const;
@@ -73,7 +88,7 @@ enum class SessionState : int {
   kRequestingMode = 2,       ///< DO_SET_MODE (OFFBOARD / GUIDED_NOGPS) sent, waiting
   kArming = 3,               ///< ARM sent (or waiting for the pilot), waiting
   kActive = 4,               ///< the autopilot flies our setpoints
-  kDisarming = 5,            ///< DISARM sent after landing, waiting
+  kDisarming = 5,            ///< landed: idle thrust streamed, DISARM sent until confirmed
   kDisarmed = 6,             ///< done: landed and disarmed
   kHandedBack = 7,           ///< control handed back to the autopilot (watchdog, pilot)
   kFailed = 8,               ///< the handshake failed (rejected, no answer)
@@ -91,6 +106,7 @@ enum class SessionReason : int {
   kCommandTimedOut = 6,      ///< no COMMAND_ACK after command_attempts sends
   kWrongAutopilot = 7,       ///< the HEARTBEAT names another autopilot than configured
   kRequested = 8,            ///< HandBack() by the caller
+  kDisarmRefused = 9,        ///< landed, but the autopilot refused to disarm for disarm_timeout
 };
 std::string_view ToString(SessionReason reason);
 
@@ -108,15 +124,19 @@ class AutopilotSession {
   /// Throws std::invalid_argument on invalid settings.
   explicit AutopilotSession(const SessionSettings& settings);
 
-  /// A frame from the link. Only the flight controller's (target system) count: any of its
-  /// frames refreshes the state watchdog, its HEARTBEAT gives the mode and armed state, its
-  /// COMMAND_ACK answers our pending command.
+  /// A frame from the link. Only the flight controller's (target system and component)
+  /// count: any of its frames refreshes the state watchdog, its HEARTBEAT gives the mode and
+  /// armed state, its COMMAND_ACK addressed to us (our system and component, or 0) answers
+  /// our pending command. Other components of the vehicle (a motion-capture bridge) feed
+  /// nothing here.
   void OnFrame(const mavlink::Frame& frame, double now);
   /// One control step at `now` [s]: our HEARTBEAT when due, the watchdogs, the next step of
   /// the handshake, and `setpoint` (stamped `time_boot_ms`) while the session streams
   /// (warm-up to active). An invalid setpoint is never sent (counted: skipped_setpoints()).
   void Step(double now, const AttitudeSetpoint& setpoint, std::uint32_t time_boot_ms, Outbox* out);
-  /// After landing: disarm (active only). The next Steps send DISARM until it is accepted.
+  /// After landing: disarm (active only). The next Steps stream idle thrust at a level
+  /// attitude and send DISARM until a HEARTBEAT shows the vehicle disarmed (refusals while
+  /// the autopilot's land detector has not confirmed are retried for disarm_timeout).
   void RequestDisarm(double now);
   /// Stops streaming now; the autopilot's own failsafe takes over (operator, app shutdown).
   void HandBack(double now, SessionReason reason = SessionReason::kRequested);
@@ -152,6 +172,7 @@ class AutopilotSession {
   void OnAck(const mavlink::CommandAck& ack, double now);
   void Watchdogs(double now);
   void Handshake(double now, Outbox* out);
+  [[nodiscard]] double ResendAfter() const;
 
   SessionSettings settings_;
   SessionState state_ = SessionState::kWaitingForAutopilot;
@@ -161,6 +182,14 @@ class AutopilotSession {
   bool seen_active_mode_ = false;  // a HEARTBEAT showed OFFBOARD since the mode request
   bool seen_armed_ = false;        // a HEARTBEAT showed armed since the mode request
   bool seen_disarmed_ = false;     // a HEARTBEAT showed disarmed while disarming
+  // The autopilot accepted our mode request / arming: the next HEARTBEAT must show it (else
+  // someone else changed it: the pilot, a failsafe).
+  bool mode_accepted_ = false, arm_accepted_ = false;
+  bool contradicted_ = false;  // a HEARTBEAT after an accepted command did not show it
+  double disarm_start_ = kNaN;
+  double last_yaw_ = kNaN;          // of the last setpoint sent: held while disarming
+  SessionEvent last_event_of_ack_;  // the accepted ACK, logged with the confirmed state
+  bool has_ack_event_ = false;
   FlightMode mode_ = FlightMode::kOther;
   double last_frame_ = kNaN, last_heartbeat_ = kNaN, last_own_heartbeat_ = kNaN;
   double warmup_start_ = kNaN;

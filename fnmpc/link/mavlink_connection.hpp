@@ -39,20 +39,33 @@ class MavlinkConnection {
   /// bytes are immediately available (a burst is drained), at most kMaxReadsPerPoll reads in
   /// all. Returns the number of frames decoded. The frame (and its bytes) is valid only
   /// during the call.
+  ///
+  /// A chunk that held a valid frame of the expected peer (ExpectPeer; by default any valid
+  /// frame) confirms its sender to the transport (Transport::ConfirmLastSender).
   template <class OnFrame>
   int Poll(double timeout, OnFrame&& on_frame) {
     int frames = 0;
+    bool from_peer = false;
     auto count = [&](const mavlink::Frame& frame) {
       ++frames;
+      from_peer = from_peer || IsPeer(frame.header);
       on_frame(frame);
     };
     std::size_t n = transport_->Read(read_buffer_, timeout);
     for (int reads = 1; n > 0; ++reads) {
+      from_peer = false;
       parser_.Parse(std::span<const std::uint8_t>(read_buffer_.data(), n), count);
+      if (from_peer) transport_->ConfirmLastSender();
       if (reads >= kMaxReadsPerPoll) break;
       n = transport_->Read(read_buffer_, 0.0);
     }
     return frames;
+  }
+
+  /// Only frames of (system_id, component_id) confirm a sender (0: any id in that place).
+  void ExpectPeer(std::uint8_t system_id, std::uint8_t component_id) {
+    peer_system_ = system_id;
+    peer_component_ = component_id;
   }
 
   /// The parser's counters: bytes received, frames decoded, bytes discarded, failed checks.
@@ -74,6 +87,12 @@ class MavlinkConnection {
   mavlink::Parser parser_;
   std::array<std::uint8_t, mavlink::kMaxFrameLength> frame_buffer_{};
   std::array<std::uint8_t, kReadBufferSize> read_buffer_{};
+  [[nodiscard]] bool IsPeer(const mavlink::FrameHeader& h) const {
+    return (peer_system_ == 0 || h.system_id == peer_system_) &&
+           (peer_component_ == 0 || h.component_id == peer_component_);
+  }
+
+  std::uint8_t peer_system_ = 0, peer_component_ = 0;
   std::uint64_t send_failures_ = 0;
   std::uint64_t frames_sent_ = 0;
 };

@@ -29,6 +29,11 @@ class Transport {
   /// on a fatal error.
   virtual bool Write(std::span<const std::uint8_t> bytes) = 0;
 
+  /// The last chunk Read returned held a valid frame of the peer we talk to: a transport that
+  /// learns its peer (UDP listen) replies to that sender from now on. Nothing else, no junk
+  /// datagram and no other sender, ever redirects the replies. No-op for the others.
+  virtual void ConfirmLastSender() {}
+
   /// The link, e.g. "udpout:127.0.0.1:14540" (for logs).
   [[nodiscard]] virtual std::string Describe() const = 0;
 };

@@ -90,16 +90,19 @@ bool UdpTransport::Receive(std::span<std::uint8_t> buffer, std::size_t* n) {
     if (got >= 0) {
       *n = static_cast<std::size_t>(got);  // a longer datagram is truncated to the buffer
       ++datagrams_received_;
-      if (listen_ && from.sin_family == AF_INET) {
-        peer_ = from;
-        has_peer_ = true;
-      }
+      last_sender_ = from;
       return true;
     }
     if (errno == EINTR) continue;
     if (Transient(errno)) return false;
     throw std::runtime_error(ErrnoMessage(description_, "recvfrom", errno));
   }
+}
+
+void UdpTransport::ConfirmLastSender() {
+  if (!listen_ || last_sender_.sin_family != AF_INET) return;
+  peer_ = last_sender_;
+  has_peer_ = true;
 }
 
 std::size_t UdpTransport::Read(std::span<std::uint8_t> buffer, double timeout) {

@@ -16,10 +16,12 @@ namespace fnmpc::link {
 
 /// MAVLink over UDP/IPv4 (one frame or more per datagram), on a non-blocking socket.
 ///
-/// kUdpListen binds host:port and has no peer until the first datagram arrives; it then
-/// replies to the sender of the last datagram received (a flight controller that restarts
-/// from another port is followed). Port 0 binds an ephemeral port (local_port(); for tests,
-/// ParseLinkAddress does not accept it).
+/// kUdpListen binds host:port and has no peer until a datagram holding a valid frame of the
+/// expected sender arrives (ConfirmLastSender, called by MavlinkConnection); it then replies
+/// to the sender of the last such datagram (a flight controller that restarts from another
+/// port is followed). A junk datagram, or one from another sender, never redirects the
+/// replies. Port 0 binds an ephemeral port (local_port(); for tests, ParseLinkAddress does
+/// not accept it).
 ///
 /// kUdpConnect sends to host:port from an ephemeral local port and reads the datagrams that
 /// arrive there, from any sender (the socket is not connect()ed, so that an autopilot
@@ -32,6 +34,7 @@ class UdpTransport : public Transport {
 
   std::size_t Read(std::span<std::uint8_t> buffer, double timeout) override;
   bool Write(std::span<const std::uint8_t> bytes) override;
+  void ConfirmLastSender() override;
   [[nodiscard]] std::string Describe() const override { return description_; }
 
   /// The bound local port (the ephemeral one for kUdpConnect or port 0).
@@ -49,6 +52,7 @@ class UdpTransport : public Transport {
   UniqueFd fd_;
   bool listen_ = false;
   sockaddr_in peer_{};
+  sockaddr_in last_sender_{};
   bool has_peer_ = false;
   int local_port_ = 0;
   std::uint64_t datagrams_received_ = 0;

@@ -26,7 +26,44 @@ void Parser::SetTimestamp(std::uint64_t timestamp) {
   newest_timestamp_ = std::max(newest_timestamp_, timestamp);
 }
 
+void Parser::NoteUnknown(std::size_t frame_length) {
+  const std::uint64_t at = Offset();
+  if (run_active_ && at == run_end_) {
+    run_end_ = at + frame_length;  // the next frame of the run
+    ++run_frames_;
+    return;
+  }
+  if (run_active_ && at < run_end_) return;  // a false start inside the run's last frame
+  run_active_ = true;
+  run_start_ = at;
+  run_end_ = at + frame_length;
+  run_frames_ = 1;
+  run_before_ = counters_;
+}
+
+void Parser::ConfirmUnknownRun() {
+  if (!run_active_) return;
+  run_active_ = false;
+  if (Offset() != run_end_) return;  // a valid frame elsewhere: the run was garbage
+  // Every byte of the run was discarded (a valid frame inside would have ended it) and every
+  // failure since its start was a false start inside it.
+  const std::uint64_t bytes = run_end_ - run_start_;
+  ParserCounters& c = counters_;
+  c.bytes_discarded -= bytes;
+  c.bytes_in_unknown_frames += bytes;
+  c.unknown_frames += run_frames_;
+  c.crc_errors = run_before_.crc_errors;
+  c.unknown_ids = run_before_.unknown_ids + run_frames_;
+  c.bad_lengths = run_before_.bad_lengths;
+  c.bad_incompat_flags = run_before_.bad_incompat_flags;
+  c.signature_failures = run_before_.signature_failures;
+  c.unsigned_rejected = run_before_.unsigned_rejected;
+  c.bad_signatures = run_before_.bad_signatures;
+  c.timestamps_rejected = run_before_.timestamps_rejected;
+}
+
 void Parser::Reset() {
+  run_active_ = false;
   if (emitted_) {
     // The handed-out frame's bytes are counted already.
     std::memmove(buf_.data(), buf_.data() + expected_, end_ - expected_);
@@ -91,6 +128,8 @@ bool Parser::HeaderOk() {
   const auto id = static_cast<std::uint32_t>(wire::GetUint(buf_.data() + 7, 3));
   info_ = FindMessageInfo(id);
   if (info_ == nullptr) {
+    NoteUnknown(kHeaderLength + length + kChecksumLength +
+                ((incompat & kIncompatFlagSigned) != 0 ? kSignatureLength : 0));
     Fail(&counters_.unknown_ids);
     return false;
   }
@@ -182,6 +221,7 @@ bool Parser::CompleteOk() {
   UnpackPayload(info_->id, std::span<const std::uint8_t>(buf_.data() + kHeaderLength, length),
                 &frame_.message);
   frame_.bytes = std::span<const std::uint8_t>(buf_.data(), expected_);
+  ConfirmUnknownRun();
   ++counters_.frames_ok;
   counters_.bytes_in_frames += expected_;
   emitted_ = true;

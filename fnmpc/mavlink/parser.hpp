@@ -26,20 +26,35 @@ struct Frame {
 };
 
 /// What a parser has seen since construction (or ResetCounters). Every received byte ends
-/// in a decoded frame or is discarded, or is still buffered:
-///   bytes_received == bytes_in_frames + bytes_discarded + Parser::buffered().
+/// in a decoded frame, in a frame of a message id it does not know, or is discarded, or is
+/// still buffered:
+///   bytes_received == bytes_in_frames + bytes_in_unknown_frames + bytes_discarded
+///                     + Parser::buffered().
 /// Each failed frame candidate counts once, under the first check it fails; the checks, in
 /// order: incompatibility flags, message id, payload length (at the header), checksum,
 /// signature (with a key set).
+///
+/// Unknown message ids. A real autopilot sends many messages this codec does not decode.
+/// Their checksum cannot be verified (it needs the message's CRC_EXTRA), so they are never
+/// trusted on their own: the parser resynchronises through them as through garbage, and every
+/// valid frame inside survives. But when a run of unknown-id headers, each starting exactly
+/// where the one before ends by its declared length, is followed by a valid frame starting
+/// exactly at the run's end, the run was real traffic: its bytes move from bytes_discarded to
+/// bytes_in_unknown_frames, it counts in unknown_frames, and the failed candidates of false
+/// start bytes inside it are taken back from the failure counters. A healthy stream thus shows
+/// zero discarded bytes and zero failures (its last unknown frames stay counted as discarded
+/// until the next valid frame arrives).
 struct ParserCounters {
-  std::uint64_t bytes_received = 0;      ///< bytes fed in
-  std::uint64_t frames_ok = 0;           ///< frames decoded and handed out
-  std::uint64_t bytes_in_frames = 0;     ///< bytes of those frames
-  std::uint64_t bytes_discarded = 0;     ///< bytes not part of any decoded frame
-  std::uint64_t crc_errors = 0;          ///< complete candidates whose checksum is wrong
-  std::uint64_t unknown_ids = 0;         ///< headers with an unsupported message id
-  std::uint64_t bad_lengths = 0;         ///< payload longer than the message's max length
-  std::uint64_t bad_incompat_flags = 0;  ///< headers with an unknown incompatibility flag
+  std::uint64_t bytes_received = 0;           ///< bytes fed in
+  std::uint64_t frames_ok = 0;                ///< frames decoded and handed out
+  std::uint64_t bytes_in_frames = 0;          ///< bytes of those frames
+  std::uint64_t bytes_discarded = 0;          ///< bytes not part of any decoded frame
+  std::uint64_t crc_errors = 0;               ///< complete candidates whose checksum is wrong
+  std::uint64_t unknown_ids = 0;              ///< headers with an unsupported message id
+  std::uint64_t unknown_frames = 0;           ///< frames of an unsupported id, skipped (above)
+  std::uint64_t bytes_in_unknown_frames = 0;  ///< bytes of those frames
+  std::uint64_t bad_lengths = 0;              ///< payload longer than the message's max length
+  std::uint64_t bad_incompat_flags = 0;       ///< headers with an unknown incompatibility flag
   /// Frames with a valid checksum rejected by signing (key set): the sum of the next three.
   std::uint64_t signature_failures = 0;
   std::uint64_t unsigned_rejected = 0;    ///< unsigned frame while a key is set
@@ -105,7 +120,10 @@ class Parser {
   /// link was reopened.
   void Reset();
   /// Zeroes the counters (the buffered bytes are then not in bytes_received).
-  void ResetCounters() { counters_ = ParserCounters{}; }
+  void ResetCounters() {
+    counters_ = ParserCounters{};
+    run_active_ = false;
+  }
 
   const ParserCounters& counters() const { return counters_; }
   /// Bytes held for a frame not yet complete.
@@ -133,6 +151,18 @@ class Parser {
   // Gives up the candidate's start byte: discards up to the next start byte after it.
   void Fail(std::uint64_t* counter);
   void Discard(std::size_t n);
+  // Stream offset of buf_[0].
+  [[nodiscard]] std::uint64_t Offset() const { return counters_.bytes_received - end_; }
+  // An unknown-id header at buf_[0] (before its failure is counted).
+  void NoteUnknown(std::size_t frame_length);
+  // A valid frame at buf_[0]: confirms the run of unknown frames that ends there.
+  void ConfirmUnknownRun();
+
+  // The current run of unknown-id frames (see ParserCounters): stream offsets, frames, and
+  // the counters as they were before its first header.
+  bool run_active_ = false;
+  std::uint64_t run_start_ = 0, run_end_ = 0, run_frames_ = 0;
+  ParserCounters run_before_;
 
   std::array<std::uint8_t, kMaxFrameLength> buf_{};  // candidate, then unprocessed bytes
   std::size_t end_ = 0;                              // bytes in buf_

@@ -37,7 +37,7 @@ struct Driver {
   }
 };
 
-TEST(EmulatedAutopilotTest, Px4NeedsASetpointStreamOfOneSecondBeforeOffboard) {
+TEST(EmulatedAutopilotTest, Px4NeedsASetpointStreamOfMoreThanOneSecondBeforeOffboard) {
   Driver d{EmulatedAutopilotSettings{}};
   EXPECT_EQ(d.SetMode(0.0, AutopilotKind::kPx4, FlightMode::kOffboard),
             mav::kResultTemporarilyRejected);
@@ -45,7 +45,10 @@ TEST(EmulatedAutopilotTest, Px4NeedsASetpointStreamOfOneSecondBeforeOffboard) {
   EXPECT_EQ(d.SetMode(0.95, AutopilotKind::kPx4, FlightMode::kOffboard),
             mav::kResultTemporarilyRejected);
   d.Setpoint(1.0);
-  EXPECT_EQ(d.SetMode(1.0, AutopilotKind::kPx4, FlightMode::kOffboard), mav::kResultAccepted);
+  EXPECT_EQ(d.SetMode(1.0, AutopilotKind::kPx4, FlightMode::kOffboard),
+            mav::kResultTemporarilyRejected);  // exactly 1 s is not more than 1 s
+  d.Setpoint(1.05);
+  EXPECT_EQ(d.SetMode(1.05, AutopilotKind::kPx4, FlightMode::kOffboard), mav::kResultAccepted);
   EXPECT_EQ(d.ap.mode(), FlightMode::kOffboard);
 }
 
@@ -59,29 +62,62 @@ TEST(EmulatedAutopilotTest, Px4StreamSlowerThanTwoHertzDoesNotCount) {
 TEST(EmulatedAutopilotTest, ArmingNeedsOffboardAndAStream) {
   Driver d{EmulatedAutopilotSettings{}};
   EXPECT_EQ(d.Command(0.0, mav::kCmdComponentArmDisarm, 1.0F), mav::kResultDenied);
-  for (double t = 0.0; t <= 1.0 + 1e-9; t += 0.05) d.Setpoint(t);
-  ASSERT_EQ(d.SetMode(1.0, AutopilotKind::kPx4, FlightMode::kOffboard), mav::kResultAccepted);
-  EXPECT_EQ(d.Command(1.0, mav::kCmdComponentArmDisarm, 1.0F), mav::kResultAccepted);
+  for (double t = 0.0; t <= 1.1 + 1e-9; t += 0.05) d.Setpoint(t);
+  ASSERT_EQ(d.SetMode(1.1, AutopilotKind::kPx4, FlightMode::kOffboard), mav::kResultAccepted);
+  EXPECT_EQ(d.Command(1.1, mav::kCmdComponentArmDisarm, 1.0F), mav::kResultAccepted);
   EXPECT_TRUE(d.ap.armed());
-  EXPECT_TRUE(d.ap.Flying(1.0).valid());
-  EXPECT_EQ(d.Command(1.1, mav::kCmdComponentArmDisarm, 0.0F), mav::kResultAccepted);
-  EXPECT_FALSE(d.ap.armed());
-  EXPECT_FALSE(d.ap.Flying(1.1).valid());
+  EXPECT_TRUE(d.ap.Flying(1.1).valid());
+}
+
+TEST(EmulatedAutopilotTest, DisarmIsRefusedUntilTheLandDetectorConfirmsOrWhenForced) {
+  for (const AutopilotKind kind : {AutopilotKind::kPx4, AutopilotKind::kArduPilot}) {
+    EmulatedAutopilotSettings s;
+    s.autopilot = kind;
+    Driver d{s};
+    for (double t = 0.0; t <= 1.1 + 1e-9; t += 0.05) d.Setpoint(t);
+    ASSERT_EQ(d.SetMode(1.1, kind, FlightMode::kOffboard), mav::kResultAccepted);
+    ASSERT_EQ(d.Command(1.1, mav::kCmdComponentArmDisarm, 1.0F), mav::kResultAccepted);
+    // Flying the hover thrust: refused (PX4 "not landed", ArduPilot not land_complete)
+    double t = 1.1;
+    for (; t < 3.0; t += 0.05) {
+      d.Setpoint(t);
+      d.ap.Step(t, &d.out);
+    }
+    EXPECT_EQ(d.Command(t, mav::kCmdComponentArmDisarm, 0.0F),
+              kind == AutopilotKind::kPx4 ? mav::kResultTemporarilyRejected : mav::kResultFailed);
+    EXPECT_TRUE(d.ap.armed());
+    // Idle on the ground for 1.1 s: accepted
+    const AttitudeSetpoint idle{0.0, 0.0, 0.0, 0.0};
+    for (const double end = t + 1.1; t < end; t += 0.05) {
+      d.ap.OnFrame(FrameOf(ToSetAttitudeTarget(idle, 0, 1, 1), 1, 191), t, &d.out);
+      d.ap.Step(t, &d.out);
+    }
+    EXPECT_EQ(d.Command(t, mav::kCmdComponentArmDisarm, 0.0F), mav::kResultAccepted);
+    EXPECT_FALSE(d.ap.armed());
+    EXPECT_FALSE(d.ap.Flying(t).valid());
+  }
+  // The documented emergency force (param2 21196) disarms in the air
+  Driver f{EmulatedAutopilotSettings{}};
+  for (double t = 0.0; t <= 1.1 + 1e-9; t += 0.05) f.Setpoint(t);
+  ASSERT_EQ(f.SetMode(1.1, AutopilotKind::kPx4, FlightMode::kOffboard), mav::kResultAccepted);
+  ASSERT_EQ(f.Command(1.1, mav::kCmdComponentArmDisarm, 1.0F), mav::kResultAccepted);
+  EXPECT_EQ(f.Command(1.2, mav::kCmdComponentArmDisarm, 0.0F, 21196.0F), mav::kResultAccepted);
+  EXPECT_FALSE(f.ap.armed());
 }
 
 TEST(EmulatedAutopilotTest, SetpointLossLandsAndRefusesOffboardAfterwards) {
   Driver d{EmulatedAutopilotSettings{}};
-  for (double t = 0.0; t <= 1.0 + 1e-9; t += 0.05) d.Setpoint(t);
-  d.SetMode(1.0, AutopilotKind::kPx4, FlightMode::kOffboard);
-  d.Command(1.0, mav::kCmdComponentArmDisarm, 1.0F);
-  d.ap.Step(1.9, &d.out);
+  for (double t = 0.0; t <= 1.1 + 1e-9; t += 0.05) d.Setpoint(t);
+  d.SetMode(1.1, AutopilotKind::kPx4, FlightMode::kOffboard);
+  d.Command(1.1, mav::kCmdComponentArmDisarm, 1.0F);
+  d.ap.Step(2.0, &d.out);
   EXPECT_FALSE(d.ap.failsafe());
-  d.ap.Step(2.1, &d.out);
+  d.ap.Step(2.2, &d.out);
   EXPECT_TRUE(d.ap.failsafe());
   EXPECT_EQ(d.ap.mode(), FlightMode::kLand);
-  d.Setpoint(2.2);
-  EXPECT_FALSE(d.ap.Flying(2.2).valid());
-  EXPECT_EQ(d.SetMode(2.2, AutopilotKind::kPx4, FlightMode::kOffboard), mav::kResultDenied);
+  d.Setpoint(2.3);
+  EXPECT_FALSE(d.ap.Flying(2.3).valid());
+  EXPECT_EQ(d.SetMode(2.3, AutopilotKind::kPx4, FlightMode::kOffboard), mav::kResultDenied);
 }
 
 TEST(EmulatedAutopilotTest, HeartbeatCarriesModeArmedAndAutopilot) {

@@ -25,7 +25,10 @@ struct LinkPair {
   bool uplink = true;    // session -> autopilot delivered
   bool downlink = true;  // autopilot -> session delivered
   bool heartbeats_down = true;
-  long setpoints_seen = 0;  // SET_ATTITUDE_TARGET in the session's outboxes
+  double first_heartbeat_after = 0.0;  // HEARTBEATs before this time [s] are lost
+  LandDetectorInput motion;            // what the autopilot's land detector sees
+  int drop_commands = 0;               // the next this many COMMAND_LONGs are lost
+  long setpoints_seen = 0;             // SET_ATTITUDE_TARGET in the session's outboxes
   long commands_seen = 0;
   int last_confirmation = -1;
   double t = 0.0;
@@ -34,12 +37,13 @@ struct LinkPair {
   /// then the session's to the autopilot.
   void Step(const AttitudeSetpoint& setpoint, double dt = 0.05) {
     Outbox down, up, acks;
-    autopilot.Step(t, &down);
+    autopilot.Step(t, &down, motion);
     // A state stream: the autopilot's attitude at each step.
     down.Push(mavlink::Attitude{});
     for (const mavlink::Message& m : down) {
       const bool hb = std::holds_alternative<mavlink::Heartbeat>(m);
-      if (downlink && (!hb || heartbeats_down)) session.OnFrame(FrameOf(m, 1, 1), t);
+      const bool hb_lost = hb && (!heartbeats_down || t < first_heartbeat_after);
+      if (downlink && !hb_lost) session.OnFrame(FrameOf(m, 1, 1), t);
     }
     session.Step(t, setpoint, static_cast<std::uint32_t>(t * 1000.0), &up);
     for (const mavlink::Message& m : up) {
@@ -47,6 +51,10 @@ struct LinkPair {
       if (const auto* c = std::get_if<mavlink::CommandLong>(&m)) {
         ++commands_seen;
         last_confirmation = c->confirmation;
+        if (drop_commands > 0) {
+          --drop_commands;
+          continue;
+        }
       }
       if (uplink) autopilot.OnFrame(FrameOf(m, 1, 191), t, &acks);
     }

@@ -201,13 +201,141 @@ TEST(SessionTest, InvalidSetpointsAreNeverSent) {
   EXPECT_TRUE(link.autopilot.Flying(link.t).valid());
 }
 
-TEST(SessionTest, DisarmAfterLanding) {
+TEST(SessionTest, DisarmAfterLandingStreamsIdleUntilThePx4LandDetectorConfirms) {
+  // Given an active session on the ground (the land detector sees no motion)
   LinkPair link(Px4(), EmulatedPx4());
-  ASSERT_TRUE(link.RunUntil(5.0, Hover(), [&] { return link.session.active(); }));
+  ASSERT_TRUE(link.RunUntil(6.0, Hover(), [&] { return link.session.active(); }));
+  // When the controller has landed and asks to disarm, still offering its hover setpoint
+  const double landed = link.t;
   link.session.RequestDisarm(link.t);
-  ASSERT_TRUE(link.RunUntil(link.t + 2.0, Hover(), [&] { return link.session.finished(); }));
+  bool refused = false, idle_flown = false;
+  ASSERT_TRUE(link.RunUntil(landed + 4.0, Hover(), [&] {
+    double t = 0.0;
+    refused = refused || link.autopilot.TakeEvent(&t) == EmulatorEvent::kDisarmRefused;
+    const AttitudeSetpoint f = link.autopilot.Flying(link.t);
+    idle_flown = idle_flown || (f.valid() && f.thrust == 0.0 && f.roll == 0.0 && f.pitch == 0.0);
+    return link.session.finished();
+  }));
+  // Then PX4 first refused (not landed yet), the session streamed idle thrust level, and it
+  // ended disarmed once the detector confirmed (0.6 s) and a HEARTBEAT showed it
+  EXPECT_TRUE(refused);
+  EXPECT_TRUE(idle_flown);
   EXPECT_EQ(link.session.state(), SessionState::kDisarmed);
   EXPECT_FALSE(link.autopilot.armed());
+  EXPECT_GT(link.t - landed, 0.6 - 1e-9);
+  EXPECT_LE(link.t - landed, 0.6 + 1.0 + 0.5 + 0.1);  // + a HEARTBEAT period + a resend
+}
+
+TEST(SessionTest, ArduPilotRefusesDisarmWithFailedUntilLandCompleteAndTheSessionRetries) {
+  LinkPair link(ArduPilot(), EmulatedArduPilot());
+  ASSERT_TRUE(link.RunUntil(6.0, Hover(), [&] { return link.session.active(); }));
+  const double landed = link.t;
+  link.session.RequestDisarm(link.t);
+  ASSERT_TRUE(link.RunUntil(landed + 5.0, Hover(), [&] { return link.session.finished(); }));
+  EXPECT_EQ(link.session.state(), SessionState::kDisarmed);
+  EXPECT_GT(link.t - landed, 1.0 - 1e-9);  // LAND_DETECTOR_TRIGGER_SEC
+  EXPECT_GT(link.commands_seen, 3);        // refused DISARMs were resent
+}
+
+TEST(SessionTest, AVehicleStillMovingIsNeverDisarmedAndTheSessionHandsBackAfterTheTimeout) {
+  SessionSettings s = Px4();
+  s.disarm_timeout = 3.0;
+  LinkPair link(s, EmulatedPx4());
+  ASSERT_TRUE(link.RunUntil(6.0, Hover(), [&] { return link.session.active(); }));
+  link.motion.vertical_speed = -0.5;  // still sinking: no ground contact
+  const double landed = link.t;
+  link.session.RequestDisarm(link.t);
+  link.RunUntil(landed + 6.0, Hover(), [&] { return link.session.finished(); });
+  EXPECT_TRUE(link.autopilot.armed());
+  EXPECT_EQ(link.session.state(), SessionState::kHandedBack);
+  EXPECT_EQ(link.session.reason(), SessionReason::kDisarmRefused);
+  EXPECT_NEAR(link.t - landed, 3.0, 0.1);
+}
+
+TEST(SessionTest, TheMocapBridgeOnTheVehiclesSystemIdDoesNotFeedTheStateWatchdog) {
+  // Given an active session
+  LinkPair link(Px4(), EmulatedPx4());
+  ASSERT_TRUE(link.RunUntil(6.0, Hover(), [&] { return link.session.active(); }));
+  // When the flight controller falls silent while a bridge (component 197) keeps talking
+  link.downlink = false;
+  const double cut = link.t;
+  while (!link.session.finished() && link.t < cut + 2.0) {
+    link.session.OnFrame(testing::FrameOf(mavlink::Odometry{}, 1, 197), link.t);
+    link.session.OnFrame(testing::FrameOf(mavlink::Heartbeat{}, 1, 197), link.t);
+    link.Step(Hover());
+  }
+  // Then the session hands back for the lost state stream within 0.25 s
+  EXPECT_EQ(link.session.reason(), SessionReason::kStateStreamLost);
+  EXPECT_LE(link.t - cut, 0.25 + 0.05);
+}
+
+TEST(SessionTest, AnAckForAnotherComponentIsIgnored) {
+  // Given a session requesting OFFBOARD from an autopilot that hears nothing
+  LinkPair link(Px4(), EmulatedPx4());
+  link.uplink = false;
+  link.RunUntil(3.0, Hover(),
+                [&] { return link.session.state() == SessionState::kRequestingMode; });
+  // When a DENIED for the same command arrives addressed to component 240
+  mavlink::CommandAck ack;
+  ack.command = mav::kCmdDoSetMode;
+  ack.result = mav::kResultDenied;
+  ack.target_system = 1;
+  ack.target_component = 240;
+  link.session.OnFrame(testing::FrameOf(ack, 1, 1), link.t);
+  link.Step(Hover());
+  // Then the session goes on
+  EXPECT_EQ(link.session.state(), SessionState::kRequestingMode);
+  // And the same ACK addressed to us ends it
+  ack.target_component = 191;
+  link.session.OnFrame(testing::FrameOf(ack, 1, 1), link.t);
+  link.Step(Hover());
+  EXPECT_EQ(link.session.state(), SessionState::kFailed);
+}
+
+TEST(SessionTest, AnAcceptedModeIsBelievedOnlyFromTheHeartbeat) {
+  // Given PX4 accepting OFFBOARD, after which the pilot switches back before its HEARTBEAT
+  LinkPair link(Px4(), EmulatedPx4());
+  ASSERT_TRUE(
+      link.RunUntil(4.0, Hover(), [&] { return link.autopilot.mode() == FlightMode::kOffboard; }));
+  link.autopilot.SelectMode(FlightMode::kOther, link.t);
+  const double switched = link.t;
+  link.RunUntil(switched + 3.0, Hover(), [&] { return link.session.finished(); });
+  // Then the session was never active, handed back for the mode change within a HEARTBEAT
+  // period (+ 0.2 s), and the vehicle was never armed
+  EXPECT_EQ(link.session.state(), SessionState::kHandedBack);
+  EXPECT_EQ(link.session.reason(), SessionReason::kModeChanged);
+  EXPECT_LE(link.t - switched, 1.0 + 0.2);
+  EXPECT_FALSE(link.autopilot.armed());
+  SessionEvent e;
+  while (link.session.PopEvent(&e)) EXPECT_NE(e.state, SessionState::kActive);
+}
+
+TEST(SessionTest, PilotTakeoverWhileArmingHandsBackWithinAHeartbeat) {
+  LinkPair link(Px4(), EmulatedPx4());
+  ASSERT_TRUE(link.RunUntil(5.0, Hover(), [&] { return link.autopilot.armed(); }));
+  link.autopilot.SelectMode(FlightMode::kOther, link.t);
+  const double switched = link.t;
+  link.RunUntil(switched + 3.0, Hover(), [&] { return link.session.finished(); });
+  EXPECT_EQ(link.session.reason(), SessionReason::kModeChanged);
+  EXPECT_LE(link.t - switched, 1.0 + 0.2);
+}
+
+TEST(SessionTest, ALateFirstHeartbeatStillMakesTheHandshakeInTime) {
+  // Given PX4's telemetry from t = 0 and its first HEARTBEAT only at 0.95 s
+  LinkPair link(Px4(), EmulatedPx4());
+  link.first_heartbeat_after = 0.95;
+  // When the session runs: the warm-up started with the first frame
+  ASSERT_TRUE(link.RunUntil(10.0, Hover(), [&] { return link.session.active(); }));
+  // Then it is active within the handshake allowance
+  EXPECT_LE(link.t, link.session.settings().handshake_time);
+}
+
+TEST(SessionTest, OneLostCommandIsResentAndTheHandshakeStillCompletesInTime) {
+  LinkPair link(Px4(), EmulatedPx4());
+  link.drop_commands = 1;  // the first mode request is lost
+  ASSERT_TRUE(link.RunUntil(10.0, Hover(), [&] { return link.session.active(); }));
+  EXPECT_GE(link.commands_seen, 3);  // mode twice, arm
+  EXPECT_LE(link.t, link.session.settings().handshake_time);
 }
 
 TEST(SessionTest, InvalidSettingsNameTheField) {

@@ -8,9 +8,12 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <variant>
 #include <vector>
 
+#include "fnmpc/link/link_address.hpp"
+#include "fnmpc/link/transport.hpp"
 #include "tests/link/udp_pair.hpp"
 
 namespace fnmpc::link {
@@ -53,7 +56,7 @@ TEST(MavlinkConnectionTest, FramesBothWaysWithSenderIdsAndSequenceNumbers) {
   EXPECT_EQ(headers[0].component_id, 191);
   EXPECT_EQ(headers[0].sequence, 0);
   EXPECT_EQ(headers[0].message_id, mavlink::Heartbeat::kId);
-  // The listen side replies to the peer it learned
+  // The listen side replies to the peer whose valid frame it received
   ASSERT_TRUE(c.autopilot->Send(Beat(9)));
   EXPECT_EQ(ReceivedModes(*c.vehicle, 1.0), std::vector<std::uint32_t>{9});
   EXPECT_EQ(c.vehicle->frames_sent(), 1u);
@@ -113,6 +116,39 @@ TEST(MavlinkConnectionTest, GarbageBetweenFramesIsCountedAndDropped) {
   EXPECT_EQ(autopilot.counters().frames_ok, 1u);
   EXPECT_GE(autopilot.counters().crc_errors, 1u);
   EXPECT_GE(autopilot.counters().bytes_discarded, 4u);
+}
+
+TEST(MavlinkConnectionTest, ListenModeLocksOntoTheExpectedPeerAndIgnoresJunkAndOthers) {
+  // Given an onboard computer listening for its flight controller (system 1, component 1)
+  testing::UdpPair pair;
+  const int port = pair.listen->local_port();
+  MavlinkConnection onboard(std::move(pair.listen), 1, 191);
+  onboard.ExpectPeer(1, 1);
+  MavlinkConnection autopilot(std::move(pair.connect), 1, 1);
+  MavlinkConnection bridge(
+      OpenTransport(ParseLinkAddress("udpout:127.0.0.1:" + std::to_string(port))), 1, 197);
+  const std::unique_ptr<Transport> junk =
+      OpenTransport(ParseLinkAddress("udpout:127.0.0.1:" + std::to_string(port)));
+  // When junk and the bridge speak first, nobody is answered
+  const std::array<std::uint8_t, 6> garbage{0xFD, 0x09, 0x00, 0x00, 0x00, 0x01};
+  ASSERT_TRUE(junk->Write(garbage));
+  ASSERT_TRUE(bridge.Send(Beat(1)));
+  ReceivedModes(onboard, 0.5);
+  ReceivedModes(onboard, 0.2);
+  EXPECT_FALSE(onboard.Send(Beat(2)));
+  // Then the flight controller's frame locks the replies onto it
+  ASSERT_TRUE(autopilot.Send(Beat(3)));
+  EXPECT_EQ(ReceivedModes(onboard, 1.0), std::vector<std::uint32_t>{3});
+  ASSERT_TRUE(onboard.Send(Beat(4)));
+  EXPECT_EQ(ReceivedModes(autopilot, 1.0), std::vector<std::uint32_t>{4});
+  // And later junk and bridge frames do not redirect them
+  ASSERT_TRUE(junk->Write(garbage));
+  ASSERT_TRUE(bridge.Send(Beat(5)));
+  ReceivedModes(onboard, 0.5);
+  ReceivedModes(onboard, 0.2);
+  ASSERT_TRUE(onboard.Send(Beat(6)));
+  EXPECT_EQ(ReceivedModes(autopilot, 1.0), std::vector<std::uint32_t>{6});
+  EXPECT_TRUE(ReceivedModes(bridge, 0.2).empty());
 }
 
 }  // namespace

@@ -27,7 +27,7 @@ std::string ReadString(Transport& t, double timeout) {
   return std::string(reinterpret_cast<const char*>(buffer.data()), n);
 }
 
-TEST(UdpTransportTest, BothDirectionsWithThePeerLearnedFromTheFirstDatagram) {
+TEST(UdpTransportTest, BothDirectionsWithThePeerConfirmedAfterADatagram) {
   testing::UdpPair pair;
   EXPECT_GT(pair.listen->local_port(), 0);
   EXPECT_GT(pair.connect->local_port(), 0);
@@ -37,12 +37,31 @@ TEST(UdpTransportTest, BothDirectionsWithThePeerLearnedFromTheFirstDatagram) {
   // Connect -> listen
   ASSERT_TRUE(pair.connect->Write(Bytes("hello")));
   EXPECT_EQ(ReadString(*pair.listen, 1.0), "hello");
+  // A datagram alone does not make its sender the peer: only a confirmed one does
+  EXPECT_FALSE(pair.listen->has_peer());
+  pair.listen->ConfirmLastSender();
   EXPECT_TRUE(pair.listen->has_peer());
   // Listen -> connect, to the learned peer
   ASSERT_TRUE(pair.listen->Write(Bytes("world")));
   EXPECT_EQ(ReadString(*pair.connect, 1.0), "world");
   EXPECT_EQ(pair.listen->datagrams_received(), 1u);
   EXPECT_EQ(pair.connect->datagrams_received(), 1u);
+}
+
+TEST(UdpTransportTest, AnUnconfirmedSenderNeverRedirectsTheReplies) {
+  testing::UdpPair pair;
+  ASSERT_TRUE(pair.connect->Write(Bytes("autopilot")));
+  EXPECT_EQ(ReadString(*pair.listen, 1.0), "autopilot");
+  pair.listen->ConfirmLastSender();
+  // A stranger sends junk to the listen port
+  const std::unique_ptr<Transport> stranger = OpenTransport(
+      ParseLinkAddress("udpout:127.0.0.1:" + std::to_string(pair.listen->local_port())));
+  ASSERT_TRUE(stranger->Write(Bytes("junk")));
+  EXPECT_EQ(ReadString(*pair.listen, 1.0), "junk");
+  // The reply still goes to the confirmed peer, not the stranger
+  ASSERT_TRUE(pair.listen->Write(Bytes("reply")));
+  EXPECT_EQ(ReadString(*pair.connect, 1.0), "reply");
+  EXPECT_EQ(ReadString(*stranger, 0.2), "");
 }
 
 TEST(UdpTransportTest, OneDatagramPerRead) {

@@ -53,7 +53,8 @@ Copy CopyOf(const Frame& f) {
 
 void CheckConservation(const Parser& p) {
   const mav::ParserCounters& c = p.counters();
-  Check(c.bytes_received == c.bytes_in_frames + c.bytes_discarded + p.buffered());
+  Check(c.bytes_received ==
+        c.bytes_in_frames + c.bytes_in_unknown_frames + c.bytes_discarded + p.buffered());
   Check(c.signature_failures == c.unsigned_rejected + c.bad_signatures + c.timestamps_rejected);
 }
 

@@ -37,7 +37,8 @@ std::vector<Received> ParseAll(Parser* parser, const Bytes& stream) {
 
 void ExpectConservation(const Parser& p) {
   const ParserCounters& c = p.counters();
-  EXPECT_EQ(c.bytes_received, c.bytes_in_frames + c.bytes_discarded + p.buffered());
+  EXPECT_EQ(c.bytes_received,
+            c.bytes_in_frames + c.bytes_in_unknown_frames + c.bytes_discarded + p.buffered());
 }
 
 Bytes Concat(std::initializer_list<Bytes> parts) {
@@ -210,7 +211,57 @@ TEST(ParserTest, RejectsUnknownIdsBadLengthsAndFlagsAndKeepsGoing) {
   EXPECT_EQ(c.bad_incompat_flags, 1U);
   EXPECT_EQ(c.crc_errors, 1U);
   EXPECT_EQ(c.frames_ok, 4U);
-  EXPECT_EQ(c.bytes_discarded, unknown.size() + too_long.size() + flagged.size() + bad_crc.size());
+  // The unknown frame, followed by a valid frame at its declared end, is skipped, not
+  // discarded
+  EXPECT_EQ(c.unknown_frames, 1U);
+  EXPECT_EQ(c.bytes_in_unknown_frames, unknown.size());
+  EXPECT_EQ(c.bytes_discarded, too_long.size() + flagged.size() + bad_crc.size());
+  ExpectConservation(parser);
+}
+
+TEST(ParserTest, ARunOfUnknownFramesWithFalseStartsInsideIsSkippedWithoutFailures) {
+  // Given what an autopilot sends: frames of ids we do not decode, back to back, one with
+  // false start bytes in its payload (a 0xFD then a HEARTBEAT-like header, which completes
+  // and fails its checksum), then a valid frame
+  Encoder encoder(1, 1);
+  const Bytes good = EncodeToVector(&encoder, Heartbeat{.custom_mode = 3, .mavlink_version = 3});
+  Bytes tricky_payload(40, 0x00);
+  tricky_payload[5] = kStartByte;
+  tricky_payload[6] = 9;  // length 9, then zero flags and id 0 (HEARTBEAT)
+  const Bytes a = RawFrame(33, 104, Bytes(28, 0x31));  // GLOBAL_POSITION_INT-sized
+  const Bytes b = RawFrame(245, 130, tricky_payload);
+  const Bytes c_frame = RawFrame(163, 163, Bytes(42, 0x07));
+  const Bytes stream = Concat({good, a, b, c_frame, good});
+  // When it is parsed
+  Parser parser;
+  const auto got = ParseAll(&parser, stream);
+  // Then both valid frames decode, the three unknown ones are skipped by their length, and
+  // nothing counts as discarded or failed
+  EXPECT_EQ(got.size(), 2U);
+  const ParserCounters& c = parser.counters();
+  EXPECT_EQ(c.unknown_frames, 3U);
+  EXPECT_EQ(c.unknown_ids, 3U);
+  EXPECT_EQ(c.bytes_in_unknown_frames, a.size() + b.size() + c_frame.size());
+  EXPECT_EQ(c.bytes_discarded, 0U);
+  EXPECT_EQ(c.crc_errors, 0U);
+  EXPECT_EQ(c.bad_lengths, 0U);
+  ExpectConservation(parser);
+}
+
+TEST(ParserTest, AnUnknownHeaderInGarbageNeverSwallowsTheValidFrameInsideItsDeclaredLength) {
+  // Given a false start claiming an unknown id and 200 payload bytes, then a valid frame
+  // well inside those 200 bytes
+  Encoder encoder(1, 1);
+  const Bytes good = EncodeToVector(&encoder, Heartbeat{.custom_mode = 5, .mavlink_version = 3});
+  const Bytes false_header = {kStartByte, 200, 0x00, 0x00, 0x00, 1, 1, 0x21, 0x00, 0x00};
+  const Bytes stream = Concat({false_header, Bytes(7, 0x55), good, Bytes(300, 0x66), good});
+  Parser parser;
+  const auto got = ParseAll(&parser, stream);
+  // Then both valid frames decode and the garbage is discarded, not taken for a frame
+  EXPECT_EQ(got.size(), 2U);
+  EXPECT_EQ(parser.counters().unknown_frames, 0U);
+  EXPECT_EQ(parser.counters().bytes_in_unknown_frames, 0U);
+  EXPECT_EQ(parser.counters().bytes_discarded, false_header.size() + 7 + 300);
   ExpectConservation(parser);
 }
 
