@@ -3,7 +3,6 @@
 // the run folder the unsharded run writes (docs/campaigns.md).
 #include <fmt/core.h>
 
-#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -21,16 +20,9 @@ struct MergeArgs {
 };
 
 int Merge(const MergeArgs& a) {
-  std::error_code ec;
-  const bool existed = std::filesystem::exists(a.out, ec);
-  PrepareRunFolder(a.out, a.overwrite);
-  nlohmann::json summary;
-  try {
-    summary = MergeRunFolders(a.shards, a.out);
-  } catch (...) {
-    if (!existed) std::filesystem::remove(a.out, ec);  // refused: leave no empty folder behind
-    throw;
-  }
+  // Checks every shard, writes beside -o and renames into place: a refused or failed merge
+  // leaves -o as it was.
+  const nlohmann::json summary = MergeRunFolders(a.shards, a.out, a.overwrite);
   fmt::print("{}\n", a.out);
   const auto failures = summary.value("failures", nlohmann::json::array());
   for (const auto& f : failures) {
@@ -47,8 +39,12 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
   sub->add_option("shards", a->shards, "the N shard folders, in any order")
       ->required()
       ->check(CLI::ExistingDirectory);
-  sub->add_option("-o,--out", a->out, "the merged run folder (new or empty)")->required();
-  sub->add_flag("--overwrite", a->overwrite, "empty a non-empty run folder first");
+  sub->add_option("-o,--out", a->out,
+                  "the merged run folder (new or empty; never one of the shards nor inside one)")
+      ->required();
+  sub->add_flag("--overwrite", a->overwrite,
+                "replace an earlier merge in -o (only a folder fnmpc wrote that holds nothing "
+                "else; replaced once the new merge is complete)");
   registry.push_back({sub, [a] { return Merge(*a); }});
 }
 const RegisterCommand kRegistered(&Register);

@@ -134,7 +134,9 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
       ->check(CLI::Validator(
           [](std::string& s) { return s.empty() ? std::string("must not be empty") : ""; }, "DIR",
           "NonEmpty"));
-  sub->add_flag("--overwrite", a->overwrite, "empty a non-empty run folder first");
+  sub->add_flag("--overwrite", a->overwrite,
+                "delete the files an earlier fnmpc run wrote in -o first (those its "
+                ".fnmpc-manifest lists; nothing else; a folder without one is refused)");
   sub->add_option("--runs", a->runs, "number of runs with seeds seed, seed+1, ...")
       ->check(CLI::Range(1, 10000));
   sub->add_option("-j,--jobs", a->jobs,

@@ -3,6 +3,9 @@
 
 #include <fmt/core.h>
 
+#include <unistd.h>
+
+#include <algorithm>
 #include <atomic>
 #include <charconv>
 #include <cmath>
@@ -16,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "apps/fnmpc/folder_manifest.hpp"
 #include "apps/fnmpc/output_files.hpp"
 #include "apps/fnmpc/scenario_runner.hpp"
 
@@ -30,6 +34,20 @@ double NumberOr(const json& j, const char* key, double fallback) {
 }
 bool Stopped(const RunFolderOptions& o) { return o.stop != nullptr && *o.stop != 0; }
 std::string RunDir(int r) { return fmt::format("run-{:02d}", r + 1); }
+
+/// The files RunScenario writes into run r's folder (run_loop.cpp, scenario_runner.cpp):
+/// a CSV per vehicle, the drawn plants with reality on, the run's summary. Listed in the
+/// manifest before the run begins; tests/integration/run_shard_test.cpp checks that they
+/// are all the run writes.
+std::vector<std::string> RunFiles(const config::ScenarioConfig& sc, int r) {
+  std::vector<std::string> files;
+  for (const auto& v : sc.vehicles) {
+    files.push_back(RunDir(r) + "/" + v.name + ".csv");
+    if (sc.reality.enabled) files.push_back(RunDir(r) + "/plant-" + v.name + ".yaml");
+  }
+  files.push_back(RunDir(r) + "/summary.json");
+  return files;
+}
 
 std::string ReadText(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
@@ -92,6 +110,17 @@ Shard ParseShard(const std::string& text) {
   return s;
 }
 
+namespace {
+/// Why `--overwrite` refuses a folder without a manifest, and what to do.
+std::string NoManifest(const std::string& dir) {
+  return fmt::format(
+      "{}: --overwrite deletes only files fnmpc wrote, and this folder has no {} listing "
+      "them: it is not a folder of fnmpc (or one written by an earlier fnmpc, which "
+      "kept no manifest); nothing deleted: delete it yourself or choose another -o",
+      dir, kManifestName);
+}
+}  // namespace
+
 void PrepareRunFolder(const std::string& dir, bool overwrite) {
   std::error_code ec;
   if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
@@ -101,20 +130,19 @@ void PrepareRunFolder(const std::string& dir, bool overwrite) {
     if (!overwrite) {
       throw std::runtime_error(dir +
                                ": run folder is not empty (an earlier run?); use "
-                               "--overwrite to empty it first, --resume to finish it, or "
-                               "choose another -o");
+                               "--overwrite to delete the files fnmpc wrote there, --resume to "
+                               "finish it, or choose another -o");
     }
-    // Only what looks like an earlier run folder is emptied: a mistyped -o (a home or
-    // source folder) must not be wiped.
-    if (!fs::exists(fs::path(dir) / "scenario.yaml") &&
-        !fs::exists(fs::path(dir) / "summary.json")) {
-      throw std::runtime_error(dir +
-                               ": not a run folder of `fnmpc run` (no scenario.yaml or "
-                               "summary.json); --overwrite refuses to empty it");
-    }
-    for (const auto& entry : fs::directory_iterator(dir)) fs::remove_all(entry.path());
+    if (!FolderManifest::Exists(dir)) throw std::runtime_error(NoManifest(dir));
+    // Only what fnmpc listed goes; a user's own files in the folder stay.
+    DeleteListedFiles(dir, FolderManifest::Read(dir));
   }
-  fs::create_directories(dir);
+  try {
+    fs::create_directories(dir);
+  } catch (const fs::filesystem_error& e) {
+    throw std::runtime_error(dir + ": cannot create the folder: " + e.code().message());
+  }
+  FolderManifest().Write(dir);  // the folder is fnmpc's from now on
 }
 
 json FolderIdentity(const config::ScenarioConfig& sc, const RunFolderOptions& options) {
@@ -140,6 +168,12 @@ void CheckResumable(const config::ScenarioConfig& sc, const RunFolderOptions& op
     throw std::runtime_error(dir +
                              ": not a run folder of `fnmpc run` (no summary.json); "
                              "--resume needs the folder of an earlier attempt");
+  }
+  if (!FolderManifest::Exists(dir)) {
+    throw std::runtime_error(
+        fmt::format("{}: no {}: written by an earlier fnmpc (or not by fnmpc); --resume continues "
+                    "only folders with a manifest: delete it yourself and fly it again",
+                    dir, kManifestName));
   }
   const json s = ReadJson(path);
   json id = FolderIdentity(sc, options);
@@ -184,11 +218,39 @@ json RunFolder(const config::ScenarioConfig& sc, const RunFolderOptions& options
         fmt::format("RunFolder: shard {}/{} is not one of the shards", shard.index, shard.count));
   }
   fs::create_directories(dir);
+  // Every file written here is listed in the folder's manifest before it is begun and again,
+  // with its size and digest, when it is done (kept from an earlier attempt with --resume; a
+  // new folder starts an empty one and claims none of the files already there).
+  FolderManifest manifest =
+      FolderManifest::Exists(dir) ? FolderManifest::Read(dir) : FolderManifest();
+  manifest.Write(dir);
+  std::mutex manifest_mutex;
+  const auto plan = [&](const std::vector<std::string>& files) {
+    const std::lock_guard<std::mutex> lock(manifest_mutex);
+    for (const std::string& f : files) {
+      manifest.Plan(f);
+      manifest.Append(dir, f);
+    }
+  };
+  const auto record = [&](const std::vector<std::string>& files) {
+    const std::lock_guard<std::mutex> lock(manifest_mutex);
+    for (const std::string& f : files) {
+      std::error_code ec;
+      if (fs::is_regular_file(dir + "/" + f, ec)) {
+        manifest.Record(dir, f);
+      } else {
+        manifest.Forget(f);
+      }
+      manifest.Append(dir, f);
+    }
+  };
   if (!options.scenario_file.empty() && fs::is_regular_file(options.scenario_file)) {
     std::error_code ec;
     if (!fs::equivalent(options.scenario_file, PathInside(dir, "scenario.yaml"), ec)) {
+      plan({"scenario.yaml"});
       fs::copy_file(options.scenario_file, PathInside(dir, "scenario.yaml"),
                     fs::copy_options::overwrite_existing);
+      record({"scenario.yaml"});
     }
   }
   json identity = FolderIdentity(sc, options);
@@ -213,7 +275,22 @@ json RunFolder(const config::ScenarioConfig& sc, const RunFolderOptions& options
       fmt::print(stderr, "fnmpc run: resuming {}: {} of {} runs already complete\n", dir, kept, n);
     }
   }
+  plan({"summary.json"});
   WriteSummary(dir, FolderSummary(identity, {}, n, true, false));
+  record({"summary.json"});
+  if (options.resume) {
+    // A kept run's files an attempt killed before recording them: recorded as they are (the
+    // run's summary says it is complete).
+    for (int k = 0; k < n; ++k) {
+      if (results[static_cast<std::size_t>(k)].is_null()) continue;
+      std::vector<std::string> unrecorded;
+      for (const std::string& f : RunFiles(sc, mine[static_cast<std::size_t>(k)])) {
+        const auto it = manifest.entries().find(f);
+        if (it == manifest.entries().end() || !it->second.finished()) unrecorded.push_back(f);
+      }
+      record(unrecorded);
+    }
+  }
   // Run k writes only its run-NN/ and results[k] (null until it is done); the workers take the
   // next index. A run the simulator failed ends the folder after it, as with one job: later
   // runs are not started, and those already flown are removed below.
@@ -231,7 +308,10 @@ json RunFolder(const config::ScenarioConfig& sc, const RunFolderOptions& options
       o.stop = options.stop;
       o.threads = options.threads;
       o.timing = options.timing;
+      const std::vector<std::string> files = RunFiles(sc, r);
+      plan(files);
       json s = RunScenario(sc, o, PathInside(dir, RunDir(r)));
+      record(files);
       s["dir"] = RunDir(r);
       const std::lock_guard<std::mutex> lock(print_mutex);
       if (s.contains("error")) {
@@ -280,22 +360,148 @@ json RunFolder(const config::ScenarioConfig& sc, const RunFolderOptions& options
     const bool done = !results[i].is_null();
     if (!done || k > first_failure) {
       // Flown after the failed run (or not at all): not part of the folder.
-      std::error_code ec;
-      if (done) fs::remove_all(PathInside(dir, RunDir(mine[i])), ec);
+      if (done) {
+        DeleteListedFiles(dir, manifest, RunDir(mine[i]));
+        manifest.Forget(RunDir(mine[i]));
+      }
       continue;
     }
     runs.push_back(std::move(results[i]));
   }
   json summary = FolderSummary(identity, std::move(runs), n, Stopped(options), sim_failed);
   WriteSummary(dir, summary);
+  record({"summary.json"});
+  manifest.Write(dir);  // one sorted line per file
   return summary;
 }
 
-json MergeRunFolders(const std::vector<std::string>& shards, const std::string& out) {
+namespace {
+/// `p` absolute and normal, symbolic links resolved where the path exists.
+fs::path Resolved(const std::string& p) { return fs::weakly_canonical(fs::absolute(p)); }
+/// `inner` is `outer` or lies below it.
+bool Within(const fs::path& inner, const fs::path& outer) {
+  auto i = inner.begin();
+  for (auto o = outer.begin(); o != outer.end(); ++o, ++i) {
+    if (o->empty()) continue;  // a trailing separator
+    if (i == inner.end() || *i != *o) return false;
+  }
+  return true;
+}
+
+/// The merge's -o: not one of the shards nor inside one (nor holding one); new, empty, or,
+/// with `overwrite`, a folder fnmpc wrote that holds nothing its manifest does not list.
+/// Returns the folder to write (symbolic links resolved) and whether it is to be replaced.
+std::pair<fs::path, bool> CheckMergeTarget(const std::vector<std::string>& shards,
+                                           const std::string& out, bool overwrite) {
+  const fs::path target = Resolved(out);
+  for (const std::string& shard : shards) {
+    const fs::path s = Resolved(shard);
+    if (Within(target, s)) {
+      throw std::runtime_error(fmt::format(
+          "merge: -o {} is the shard folder {} or lies inside it: a merge never writes into "
+          "its own input; choose another -o",
+          out, shard));
+    }
+    if (Within(s, target)) {
+      throw std::runtime_error(fmt::format(
+          "merge: the shard folder {} lies inside -o {}: choose another -o", shard, out));
+    }
+  }
+  std::error_code ec;
+  if (!fs::exists(target, ec)) return {target, false};
+  if (!fs::is_directory(target, ec)) throw std::runtime_error(out + ": exists and is not a folder");
+  if (fs::is_empty(target, ec)) return {target, false};
+  if (!overwrite) {
+    throw std::runtime_error(out +
+                             ": not empty (an earlier merge?); use --overwrite to replace it or "
+                             "choose another -o");
+  }
+  if (!FolderManifest::Exists(out)) throw std::runtime_error(NoManifest(out));
+  const std::vector<std::string> extra = UnlistedFiles(out, FolderManifest::Read(out));
+  if (!extra.empty()) {
+    throw std::runtime_error(fmt::format(
+        "{}: holds {} file(s) fnmpc did not write ({}{}): --overwrite replaces a merged folder "
+        "only when it holds nothing else; nothing deleted: move them away or choose another -o",
+        out, extra.size(), extra.front(), extra.size() > 1 ? ", ..." : ""));
+  }
+  return {target, true};
+}
+
+/// Every file the shard's manifest lists is there, finished, with its size and digest.
+FolderManifest VerifiedShard(const std::string& dir) {
+  if (!FolderManifest::Exists(dir)) {
+    throw std::runtime_error(fmt::format(
+        "{}: no {}: not a shard folder of `fnmpc run --shard` (or one of an earlier fnmpc, "
+        "which kept no manifest); fly the shard again",
+        dir, kManifestName));
+  }
+  FolderManifest m = FolderManifest::Read(dir);
+  for (const auto& [path, e] : m.entries()) {
+    const std::string file = dir + "/" + path;
+    if (!e.finished()) {
+      throw std::runtime_error(file +
+                               ": not finished (the shard was stopped while writing it); "
+                               "resume the shard (fnmpc run ... --resume) before merging");
+    }
+    std::error_code ec;
+    if (!fs::is_regular_file(file, ec)) {
+      throw std::runtime_error(fmt::format(
+          "{}: missing (listed in {}): the shard folder is damaged; fly the shard again", file,
+          kManifestName));
+    }
+    const auto size = static_cast<std::int64_t>(fs::file_size(file, ec));
+    if (ec || size != e.size) {
+      throw std::runtime_error(fmt::format(
+          "{}: {} bytes, {} when fnmpc wrote it: truncated or changed; fly the shard again", file,
+          size, e.size));
+    }
+    if (FileSha256(file) != e.sha256) {
+      throw std::runtime_error(fmt::format(
+          "{}: its SHA-256 differs from the one fnmpc recorded in {}: changed since it was "
+          "written; fly the shard again",
+          file, kManifestName));
+    }
+  }
+  return m;
+}
+
+/// A temporary folder of our own beside `target` (created here, so nobody else's).
+fs::path NewFolderBeside(const fs::path& target, const char* what) {
+  fs::create_directories(target.parent_path());
+  for (int k = 0;; ++k) {
+    const fs::path p =
+        target.parent_path() / fmt::format(".{}.{}-{}-{}", target.filename().string(), what,
+                                           static_cast<long>(::getpid()), k);
+    if (fs::create_directory(p)) return p;
+  }
+}
+
+json Merge(const std::vector<std::string>& shards, const std::string& out, bool overwrite);
+}  // namespace
+
+json MergeRunFolders(const std::vector<std::string>& shards, const std::string& out,
+                     bool overwrite) {
+  try {
+    return Merge(shards, out, overwrite);
+  } catch (const fs::filesystem_error& e) {
+    // A message of ours, never the library's "filesystem error: ..." text.
+    std::string paths = e.path1().string();
+    if (!e.path2().empty()) paths += " -> " + e.path2().string();
+    throw std::runtime_error(
+        fmt::format("merge: {}: {}; -o {} left as it was", paths, e.code().message(), out));
+  }
+}
+
+namespace {
+json Merge(const std::vector<std::string>& shards, const std::string& out, bool overwrite) {
   if (shards.empty()) throw std::runtime_error("merge: no shard folders given");
+  const auto [target, replace] = CheckMergeTarget(shards, out, overwrite);
   std::vector<json> summaries;
-  for (const std::string& dir : shards)
+  std::vector<FolderManifest> manifests;
+  for (const std::string& dir : shards) {
+    manifests.push_back(VerifiedShard(dir));
     summaries.push_back(ReadJson(PathInside(dir, "summary.json")));
+  }
   // One experiment: the same identity and scenario file in every shard, every shard once.
   const json& first = summaries.front();
   if (!first.contains(kShardKey) || !first[kShardKey].is_string()) {
@@ -374,17 +580,90 @@ json MergeRunFolders(const std::vector<std::string>& shards, const std::string& 
                                   : std::string("not complete (interrupted)")));
     }
   }
-  json summary = FolderSummary(identity, runs, total_runs, false, false);
-  fs::create_directories(out);
-  WriteFileAtomically(PathInside(out, "scenario.yaml"), scenario_text);
+  // Every run's files listed (and so checked above): its summary and a CSV per vehicle.
   for (int r = 0; r < total_runs; ++r) {
-    const std::string from =
-        PathInside(folder_of[static_cast<std::size_t>(r % s0.count)], RunDir(r));
-    fs::copy(from, PathInside(out, RunDir(r)),
-             fs::copy_options::recursive | fs::copy_options::overwrite_existing);
+    const std::size_t s = static_cast<std::size_t>(r % s0.count);
+    const auto i = static_cast<std::size_t>(std::find(shards.begin(), shards.end(), folder_of[s]) -
+                                            shards.begin());
+    const json& vehicles = runs[static_cast<std::size_t>(r)].value("vehicles", json::object());
+    std::vector<std::string> needed{RunDir(r) + "/summary.json"};
+    for (const auto& [name, v] : vehicles.items())
+      needed.push_back(RunDir(r) + "/" + name + ".csv");
+    for (const std::string& f : needed) {
+      if (manifests[i].entries().count(f) == 0) {
+        throw std::runtime_error(fmt::format(
+            "{}/{}: missing (the summary names {} (seed {}), the manifest lists no such file): "
+            "the shard folder is damaged; fly the shard again",
+            folder_of[s], f, RunDir(r), seed0 + static_cast<std::uint64_t>(r)));
+      }
+    }
   }
-  WriteSummary(out, summary);
+  json summary = FolderSummary(identity, runs, total_runs, false, false);
+  // Everything is checked: the merge is written into a folder of its own beside -o and
+  // renamed into place, so -o is the earlier folder or the whole new one, never a part.
+  const fs::path tmp = NewFolderBeside(target, "merge");
+  const std::string t = tmp.string();
+  try {
+    FolderManifest merged;
+    WriteFileAtomically(PathInside(t, "scenario.yaml"), scenario_text);
+    merged.Record(t, "scenario.yaml");
+    for (int r = 0; r < total_runs; ++r) {
+      const std::size_t s = static_cast<std::size_t>(r % s0.count);
+      const auto i = static_cast<std::size_t>(
+          std::find(shards.begin(), shards.end(), folder_of[s]) - shards.begin());
+      fs::create_directory(tmp / RunDir(r));
+      for (const auto& [path, e] : manifests[i].entries()) {
+        if (!path.starts_with(RunDir(r) + "/")) continue;
+        const std::string bytes = ReadText(folder_of[s] + "/" + path);
+        if (TextSha256(bytes) != e.sha256) {
+          throw std::runtime_error(folder_of[s] + "/" + path + ": changed while merging");
+        }
+        WriteFileAtomically(t + "/" + path, bytes);
+        merged.Record(t, path);
+        if (merged.entries().at(path).sha256 != e.sha256) {
+          throw std::runtime_error(t + "/" + path + ": the copy differs from its shard's file");
+        }
+      }
+    }
+    WriteSummary(t, summary);
+    merged.Record(t, "summary.json");
+    merged.Write(t);
+    if (!replace) {
+      std::error_code ec;
+      fs::remove(target, ec);  // an empty folder (or none)
+      fs::rename(tmp, target);
+    } else {
+      // The earlier folder is moved aside, the new one renamed into place, and only then the
+      // earlier one's listed files deleted.
+      const FolderManifest old_manifest = FolderManifest::Read(target.string());
+      if (!UnlistedFiles(target.string(), old_manifest).empty()) {
+        throw std::runtime_error(out + ": a file fnmpc did not write appeared during the merge");
+      }
+      const fs::path old = NewFolderBeside(target, "old");
+      fs::remove(old);
+      fs::rename(target, old);
+      try {
+        fs::rename(tmp, target);
+      } catch (...) {
+        fs::rename(old, target);
+        throw;
+      }
+      DeleteListedFiles(old.string(), old_manifest);
+      std::error_code ec;
+      fs::remove(PathInside(old.string(), kManifestName), ec);
+      if (!fs::remove(old, ec)) {
+        fmt::print(stderr,
+                   "fnmpc merge: warning: {} (the earlier {}) is not empty; left as it is\n",
+                   old.string(), out);
+      }
+    }
+  } catch (...) {
+    std::error_code ec;
+    fs::remove_all(tmp, ec);  // ours alone: made above, filled by this merge
+    throw;
+  }
   return summary;
 }
+}  // namespace
 
 }  // namespace fnmpc::app

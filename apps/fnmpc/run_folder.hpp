@@ -47,9 +47,11 @@ struct RunFolderOptions {
   bool timing = true;  ///< RunOptions::timing: false for a folder that depends on seeds alone
 };
 
-/// Empties or creates a run folder: `dir` must be new or empty; with `overwrite` the contents
-/// of an earlier run folder (scenario.yaml or summary.json in it) are removed first (never
-/// the folder itself, so a symlink to it stays). std::runtime_error naming `dir` otherwise.
+/// Creates a run folder or makes an existing one ready: `dir` must be new or empty; with
+/// `overwrite`, a folder fnmpc wrote (its .fnmpc-manifest, folder_manifest.hpp) loses the
+/// files the manifest lists and nothing else (a user's own files stay; the folder itself is
+/// kept, so a symlink to it stays). A folder without a manifest is refused, nothing deleted.
+/// Then an empty manifest marks the folder as fnmpc's. std::runtime_error naming `dir`.
 void PrepareRunFolder(const std::string& dir, bool overwrite);
 
 /// The settings that make two run folders the same experiment (the summary's keys
@@ -73,13 +75,19 @@ void CheckResumable(const config::ScenarioConfig& scenario, const RunFolderOptio
 nlohmann::json RunFolder(const config::ScenarioConfig& scenario, const RunFolderOptions& options,
                          const std::string& dir);
 
-/// Joins the shard folders of one experiment (RunFolderOptions::shard) into `out` (prepared
-/// by the caller): their run-NN/ copied, scenario.yaml, and the summary.json the unsharded
-/// RunFolder writes for the same runs, so with RunFolderOptions::timing off the folder equals
-/// the unsharded one byte for byte. Throws std::runtime_error, writing nothing, when the
-/// shards are not one experiment (a differing identity key, scenario.yaml, shard count), a
-/// shard is missing or given twice, or a run is missing or not complete (named with its
-/// shard folder and seed). Returns the summary.
-nlohmann::json MergeRunFolders(const std::vector<std::string>& shards, const std::string& out);
+/// Joins the shard folders of one experiment (RunFolderOptions::shard) into `out`: their
+/// run-NN/ copied, scenario.yaml, and the summary.json the unsharded RunFolder writes for the
+/// same runs, so with RunFolderOptions::timing off the folder (manifest included) equals the
+/// unsharded one byte for byte. Everything is checked before `out` is touched: every shard's
+/// manifest (every listed file there, finished, with its size and SHA-256), every run of its
+/// summary listed with its CSVs; `out` is neither a shard nor inside one; a non-empty `out`
+/// needs `overwrite` and a manifest listing all it holds. The folder is written beside `out`
+/// and renamed into place (an earlier merge replaced only then). Throws std::runtime_error,
+/// leaving `out` as it was, when the shards are not one experiment (a differing identity key,
+/// scenario.yaml, shard count), a shard is missing, given twice or damaged, a run is missing
+/// or not complete (named with its shard folder and seed), or a file cannot be written.
+/// Returns the summary.
+nlohmann::json MergeRunFolders(const std::vector<std::string>& shards, const std::string& out,
+                               bool overwrite = false);
 
 }  // namespace fnmpc::app

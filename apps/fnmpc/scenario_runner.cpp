@@ -61,8 +61,15 @@ void ApplyReality(const config::ScenarioConfig& sc, std::uint64_t seed, sim::Wor
       spec.params = v.plant;
       spec.motor_time_constant = v.plant_motor_time_constant;  // NaN: the world's
     } else {
-      const model::TruePlant t =
-          model::DrawTruePlant(v.params, wc->motor_time_constant, r.plant, seed, i);
+      model::TruePlant t;
+      try {
+        t = model::DrawTruePlant(v.params, wc->motor_time_constant, r.plant, seed, i);
+      } catch (const model::PlantDrawError& e) {
+        // The scenario check drew the scenario's seed; another seed can still fail.
+        throw std::runtime_error(
+            fmt::format("{}: key 'reality.plant.{}': vehicle '{}' (seed {}): {}", sc.file, e.key(),
+                        v.name, seed, e.what()));
+      }
       spec.params = t.params;
       spec.motor_time_constant = t.motor_time_constant;
     }

@@ -195,6 +195,22 @@ void CheckReality(SettingsReader& reader, const ScenarioConfig& s) {
     if (!std::isfinite(r.turbulence.airspeed) && !(r.wind.velocity.norm() > 0.0))
       throw t->Error("turbulence without a mean wind needs 'airspeed' (m/s) for the spectra");
   }
+  // The plant draw of every vehicle without a plant file, for the scenario's seed: a spread
+  // that cannot give a physical body (model::PlantDrawError) is refused here, at its line.
+  for (std::size_t i = 0; i < s.vehicles.size(); ++i) {
+    const ScenarioVehicle& v = s.vehicles[i];
+    if (v.has_plant) continue;
+    try {
+      model::DrawTruePlant(v.params, model::TruePlant().motor_time_constant, r.plant, s.seed,
+                           static_cast<int>(i));
+    } catch (const model::PlantDrawError& e) {
+      const std::string what =
+          "vehicle '" + v.name + "' (seed " + std::to_string(s.seed) + "): " + e.what();
+      if (YamlMap* plant = reader.At("reality.plant")) throw plant->ErrorAt(e.key(), what);
+      throw reader.Required("reality").ErrorAt(
+          "plant", "the default reality.plant." + e.key() + ": " + what);
+    }
+  }
   for (std::size_t i = 0; i < r.wind.discrete_gusts.size(); ++i) {
     const double time = r.wind.discrete_gusts[i].start;
     if (!(time < s.duration)) {

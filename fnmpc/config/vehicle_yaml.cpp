@@ -65,6 +65,9 @@ model::VehicleParams ParseVehicle(YamlMap map) {
   p.mass = Positive(map, "mass");
   if (p.mass > 100.0) throw map.ErrorAt("mass", "must be <= 100 kg, got " + std::to_string(p.mass));
   p.inertia = Positive3(map, "inertia");
+  if (const std::string why = model::UnrealisableInertia(p.inertia); !why.empty()) {
+    throw map.ErrorAt("inertia", why);
+  }
   p.thrust_constant = Positive(map, "thrust_constant");
   p.torque_constant = Positive(map, "torque_constant");
   {

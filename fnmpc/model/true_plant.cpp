@@ -74,6 +74,33 @@ TruePlant DrawTruePlant(const VehicleParams& nominal, double nominal_motor_time_
   p = nominal;
   p.mass = nominal.mass * factor(s.mass);
   for (int a = 0; a < 3; ++a) p.inertia[a] = nominal.inertia[a] * factor(s.inertia);
+  if (!UnrealisableInertia(p.inertia).empty()) {
+    // Independent per-axis factors can break the triangle inequality (Izz > Ixx + Iyy): no
+    // rigid body, and MuJoCo refuses it. The three factors are drawn again, from a generator
+    // of their own so that every other draw stays the seed's, until the body is realisable:
+    // the inertia is drawn from the spread conditioned on a realisable body. A spread whose
+    // draws almost never are (kInertiaRedraws in a row) is an error, never clamped.
+    std::seed_seq redraw_seq{static_cast<std::uint32_t>(seed),
+                             static_cast<std::uint32_t>(seed >> 32),
+                             static_cast<std::uint32_t>(vehicle), 0x1E27Au};
+    std::mt19937_64 redraw(redraw_seq);
+    std::normal_distribution<double> redraw_normal(0.0, 1.0);  // (a distribution caches draws)
+    for (int k = 0; k < kInertiaRedraws && !UnrealisableInertia(p.inertia).empty(); ++k) {
+      for (int a = 0; a < 3; ++a) {
+        p.inertia[a] =
+            nominal.inertia[a] * (1.0 + s.inertia * std::clamp(redraw_normal(redraw), -3.0, 3.0));
+      }
+    }
+    if (!UnrealisableInertia(p.inertia).empty()) {
+      throw PlantDrawError(
+          "inertia", "[PlantSpread] inertia: a spread of " + std::to_string(s.inertia) +
+                         " around [" + std::to_string(nominal.inertia[0]) + ", " +
+                         std::to_string(nominal.inertia[1]) + ", " +
+                         std::to_string(nominal.inertia[2]) + "] kg m^2 drew no physically " +
+                         "realisable body in " + std::to_string(kInertiaRedraws) + " draws (" +
+                         UnrealisableInertia(p.inertia) + "); use a smaller spread");
+    }
+  }
   p.thrust_constant = nominal.thrust_constant * factor(s.thrust_constant);
   p.torque_constant = nominal.torque_constant * factor(s.torque_constant);
   t.motor_time_constant = nominal_motor_time_constant * factor(s.motor_time_constant);

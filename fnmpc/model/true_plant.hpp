@@ -2,6 +2,9 @@
 #pragma once
 
 #include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <utility>
 
 #include "fnmpc/core/serialize.hpp"
 #include "fnmpc/model/vehicle_params.hpp"
@@ -36,7 +39,9 @@ struct PlantSpread {
   void Serialize(Archive* a) {
     const Limit spread = NonNegative().Below(1.0 / 3.0, "");
     a->Visit("mass", &mass, spread, "relative sd: mass factor 1 + sd N(0,1) (cut at ±3 sd)");
-    a->Visit("inertia", &inertia, spread, "relative sd, per axis");
+    a->Visit("inertia", &inertia, spread,
+             "relative sd, per axis; a draw no rigid body has (triangle inequality) is drawn "
+             "again (docs/simulator.md)");
     a->Visit("thrust_constant", &thrust_constant, spread, "relative sd of T_k");
     a->Visit("torque_constant", &torque_constant, spread, "relative sd of T_q");
     a->Visit("motor_time_constant", &motor_time_constant, spread,
@@ -59,6 +64,21 @@ struct PlantSpread {
   void Validate() const;
 };
 
+/// A plant draw that cannot give a physical vehicle; `key` names the spread's field
+/// (`reality.plant.<key>`) so that the caller can point at the scenario's line.
+class PlantDrawError : public std::invalid_argument {
+ public:
+  PlantDrawError(std::string key, const std::string& what)
+      : std::invalid_argument(what), key_(std::move(key)) {}
+  [[nodiscard]] const std::string& key() const { return key_; }
+
+ private:
+  std::string key_;
+};
+
+/// Draws of the inertia factors before DrawTruePlant gives up on a realisable body.
+inline constexpr int kInertiaRedraws = 1000;
+
 /// One vehicle's true plant: its parameters (vehicle-file format, the calibration `bias`
 /// block holding the true attitude biases and thrust scale) and its motor time constant.
 struct TruePlant {
@@ -68,7 +88,10 @@ struct TruePlant {
 
 /// Draws the true plant of vehicle `vehicle` for `seed` around `nominal` (deterministic in
 /// (seed, vehicle), independent of the other vehicles). The nominal's own calibration bias
-/// is not inherited: the plant's bias block is the drawn truth.
+/// is not inherited: the plant's bias block is the drawn truth. The inertia is a physically
+/// realisable body (UnrealisableInertia): a draw that is not has its three inertia factors
+/// drawn again from a generator of their own (the other draws stay the seed's); after
+/// kInertiaRedraws PlantDrawError("inertia").
 TruePlant DrawTruePlant(const VehicleParams& nominal, double nominal_motor_time_constant,
                         const PlantSpread& spread, std::uint64_t seed, int vehicle);
 

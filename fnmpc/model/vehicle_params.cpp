@@ -2,6 +2,7 @@
 #include "fnmpc/model/vehicle_params.hpp"
 
 #include <cmath>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -74,6 +75,28 @@ void RequirePositive(double v, const char* name) {
 }
 }  // namespace
 
+std::string UnrealisableInertia(const Eigen::Vector3d& inertia) {
+  static const char* const kAxis[3] = {"Ixx", "Iyy", "Izz"};
+  for (int a = 0; a < 3; ++a) {
+    if (!(inertia[a] > 0.0) || !std::isfinite(inertia[a])) {
+      return std::string(kAxis[a]) + " = " + std::to_string(inertia[a]) +
+             " must be finite and > 0 (positive definite)";
+    }
+  }
+  for (int a = 0; a < 3; ++a) {
+    const int b = (a + 1) % 3, c = (a + 2) % 3;
+    if (inertia[b] + inertia[c] < inertia[a]) {
+      std::ostringstream os;
+      os.precision(6);
+      os << kAxis[a] << " = " << inertia[a] << " exceeds " << kAxis[b] << " + " << kAxis[c] << " = "
+         << inertia[b] + inertia[c]
+         << ": no rigid body has these principal moments (triangle inequality)";
+      return os.str();
+    }
+  }
+  return "";
+}
+
 void VehicleParams::Validate() const {
   RequirePositive(mass, "mass");
   for (int i = 0; i < 3; ++i) {
@@ -83,6 +106,9 @@ void VehicleParams::Validate() const {
     if (!(attitude_kp[i] >= 0.0) || !(attitude_kd[i] >= 0.0)) {
       throw std::invalid_argument("[VehicleParams] attitude_pd gains must be >= 0");
     }
+  }
+  if (const std::string why = UnrealisableInertia(inertia); !why.empty()) {
+    throw std::invalid_argument("[VehicleParams] inertia: " + why);
   }
   RequirePositive(thrust_constant, "thrust_constant");
   RequirePositive(torque_constant, "torque_constant");

@@ -46,8 +46,14 @@ struct VehicleParams {
   CalibrationBias bias;                        ///< identity unless calibrated
   bool has_bias = false;                       ///< true when the file carried a `bias` block
 
-  /// Throws std::invalid_argument naming the field when a value is not physical.
+  /// Throws std::invalid_argument naming the field when a value is not physical (an inertia
+  /// that is not RealisableInertia among them).
   void Validate() const;
 };
+
+/// Why principal moments of inertia [kg m^2] belong to no rigid body, or "" when they do: each
+/// must be finite and > 0 (positive definite) and none may exceed the sum of the other two
+/// (triangle inequality: Ixx + Iyy >= Izz and its permutations; MuJoCo refuses such a body).
+std::string UnrealisableInertia(const Eigen::Vector3d& inertia);
 
 }  // namespace fnmpc::model

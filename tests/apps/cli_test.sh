@@ -185,19 +185,30 @@ file_has '"error": "\[World\] MuJoCo instability' "$tmp/gust/run-01/summary.json
 last_t=$(tail -1 "$tmp/gust/run-01/leader.csv" | cut -d, -f1)
 awk -v t="$last_t" 'BEGIN { exit !(t >= 3.9 && t <= 4.1) }' || { echo "FAIL: leader.csv ends at t = $last_t, expected about 4"; fails=$((fails + 1)); }
 
-# ---- SIGINT into a reused folder with --overwrite: emptied first, the run in
-# progress stops after the current step, summaries "complete": false, exit 130. (--runs 50:
-# still running after 5 s on any machine.)
-mkdir -p "$tmp/int" && echo stale >"$tmp/int/ghost.csv"
-expect 1 "--overwrite refuses a folder that is no run folder" -- "$fnmpc" run "$tri" --overwrite -o "$tmp/int"
-stderr_has "not a run folder" "refusal says why"
-echo '{}' >"$tmp/int/summary.json"
+# ---- --overwrite deletes only what fnmpc wrote (its .fnmpc-manifest): a user's project
+# folder that happens to hold a scenario.yaml and a summary.json is refused, nothing deleted.
+mkdir -p "$tmp/project/src" && echo 'int main() {}' >"$tmp/project/src/main.cpp"
+echo notes >"$tmp/project/notes.md" && cp "$tri" "$tmp/project/scenario.yaml" && echo '{}' >"$tmp/project/summary.json"
+expect 1 "--overwrite refuses a folder fnmpc did not write" -- "$fnmpc" run "$tri" --overwrite --duration 20 -q -o "$tmp/project"
+stderr_has "no .fnmpc-manifest" "refusal says why"
+stderr_has "delete it yourself" "refusal says what to do"
+for f in src/main.cpp notes.md scenario.yaml summary.json; do
+  [[ -f $tmp/project/$f ]] || { echo "FAIL: refused --overwrite deleted $f"; fails=$((fails + 1)); }
+done
+
+# ---- SIGINT into a reused run folder with --overwrite: fnmpc's files deleted first (a file
+# the user added stays), the run in progress stops after the current step, summaries
+# "complete": false, exit 130. (--runs 50: still running after 5 s on any machine.)
+cp -r "$tmp/obs" "$tmp/int" && echo mine >"$tmp/int/ghost.csv"
+grep -q observer "$tmp/int/summary.json" || { echo "FAIL: the copied run folder"; fails=$((fails + 1)); }
 "$fnmpc" run "$tri" -q --runs 50 --overwrite -o "$tmp/int" >"$tmp/out" 2>"$tmp/err" &
 pid=$!
 sleep 5
 kill -INT $pid
 exits_with $pid 130 "SIGINT"
-absent "$tmp/int/ghost.csv" "--overwrite kept a stale file"
+file_has mine "$tmp/int/ghost.csv" "--overwrite deleted a file fnmpc did not write"
+grep -q '"compensation": "observer"' "$tmp/int/run-01/summary.json" 2>/dev/null &&
+  { echo "FAIL: --overwrite kept the earlier run"; fails=$((fails + 1)); }
 file_has '"complete": false' "$tmp/int/summary.json" "interrupted summary not marked"
 last=$(ls -d "$tmp"/int/run-* 2>/dev/null | sort | tail -1)
 file_has '"stopped": "interrupted"' "$last/summary.json" "$last/summary.json not marked"
@@ -211,6 +222,47 @@ kill -TERM $pid
 exits_with $pid 143 "SIGTERM"
 stderr_has "interrupted (signal 15)" "SIGTERM stop says so"
 file_has '"complete": false' "$tmp/term/summary.json" "terminated summary not marked"
+
+# ---- merge: every shard checked before -o is touched; a refused merge leaves -o byte for
+# byte, makes no folder, never prints a raw "filesystem error".
+expect 0 "shard 0/2" -- "$fnmpc" run "$tri" --duration 20 --runs 2 --shard 0/2 --timing off -q -o "$tmp/m/s0"
+expect 0 "shard 1/2" -- "$fnmpc" run "$tri" --duration 20 --runs 2 --shard 1/2 --timing off -q -o "$tmp/m/s1"
+expect 0 "merge" -- "$fnmpc" merge "$tmp/m/s0" "$tmp/m/s1" -o "$tmp/m/out"
+snapshot() { (cd "$1" && find . -type f -print0 | sort -z | xargs -0 sha256sum); }
+snapshot "$tmp/m/out" >"$tmp/m/before"
+no_raw_error() {
+  grep -q "filesystem error" "$tmp/err" && { echo "FAIL: $1: raw filesystem error"; fails=$((fails + 1)); }
+  return 0
+}
+cp -r "$tmp/m/s1" "$tmp/m/s1-cut"
+truncate -s 2000 "$tmp/m/s1-cut/run-02/leader.csv"
+expect 1 "merge of a truncated CSV refused" -- "$fnmpc" merge "$tmp/m/s0" "$tmp/m/s1-cut" -o "$tmp/m/out" --overwrite
+stderr_has "run-02/leader.csv: 2000 bytes" "the refusal names the file"
+no_raw_error "truncated CSV"
+cp -r "$tmp/m/s0" "$tmp/m/s0-gone" && rm -r "$tmp/m/s0-gone/run-01"
+expect 1 "merge of a shard without its run folder refused" -- "$fnmpc" merge "$tmp/m/s0-gone" "$tmp/m/s1" -o "$tmp/m/out" --overwrite
+stderr_has "run-01/.*missing" "the refusal names the run folder"
+no_raw_error "missing run folder"
+expect 1 "merge into a new folder refused" -- "$fnmpc" merge "$tmp/m/s0-gone" "$tmp/m/s1" -o "$tmp/m/new"
+absent "$tmp/m/new" "a refused merge made its folder"
+snapshot "$tmp/m/s1" >"$tmp/m/s1-before"
+expect 1 "merge into one of its shards refused" -- "$fnmpc" merge "$tmp/m/s0" "$tmp/m/s1" -o "$tmp/m/s1" --overwrite
+stderr_has "its own input" "the refusal says why"
+snapshot "$tmp/m/s1" | cmp -s - "$tmp/m/s1-before" || { echo "FAIL: a refused merge changed its shard"; fails=$((fails + 1)); }
+snapshot "$tmp/m/out" | cmp -s - "$tmp/m/before" || { echo "FAIL: a refused merge changed -o"; fails=$((fails + 1)); }
+expect 0 "merge --overwrite replaces an earlier merge" -- "$fnmpc" merge "$tmp/m/s1" "$tmp/m/s0" -o "$tmp/m/out" --overwrite
+snapshot "$tmp/m/out" | cmp -s - "$tmp/m/before" || { echo "FAIL: the replaced merge differs"; fails=$((fails + 1)); }
+ls -a "$tmp/m" | grep -q '^\.out\.' && { echo "FAIL: the merge left a temporary folder"; fails=$((fails + 1)); }
+
+# ---- Inertia: principal moments no rigid body has (Izz > Ixx + Iyy) are refused at the key,
+# by check-vehicle and by a scenario's --dry-run.
+sed 's/^inertia: .*/inertia: [0.0123, 0.0136, 0.03]/' "$src/config/vehicles/storm-drone-4.yaml" >"$tmp/flat.yaml"
+expect 1 "check-vehicle refuses an unrealisable inertia" -- "$fnmpc" check-vehicle "$tmp/flat.yaml"
+stderr_has "flat.yaml:[0-9]*:[0-9]*: key 'inertia'" "the refusal names file, line and key"
+stderr_has "triangle inequality" "the refusal says why"
+sed "s#vehicle_file: .*#vehicle_file: $tmp/flat.yaml#" "$tmp/tri.yaml" >"$tmp/flat-tri.yaml"
+expect 1 "--dry-run refuses an unrealisable inertia" -- "$fnmpc" run "$tmp/flat-tri.yaml" --dry-run
+stderr_has "key 'inertia'" "the dry run names the key"
 
 # ---- sysid and calibrate: glog never prints "Logging before
 # InitGoogleLogging"; Ctrl-C during sysid's plotting stops the command with 130 and a message.

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -14,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "apps/fnmpc/folder_manifest.hpp"
 #include "apps/fnmpc/run_folder.hpp"
 #include "apps/fnmpc/scenario_runner.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
@@ -45,13 +47,27 @@ void ExpectSameFolder(const std::string& a, const std::string& b) {
   }
 }
 
-std::string MessageOf(const std::vector<std::string>& shards, const std::string& out) {
+std::string MessageOf(const std::vector<std::string>& shards, const std::string& out,
+                      bool overwrite = false) {
   try {
-    MergeRunFolders(shards, out);
+    MergeRunFolders(shards, out, overwrite);
   } catch (const std::runtime_error& e) {
     return e.what();
   }
   return "";
+}
+
+void WriteText(const std::string& path, const std::string& text) {
+  fs::create_directories(fs::path(path).parent_path());
+  std::ofstream(path, std::ios::binary) << text;
+}
+
+/// The entries of `dir` itself (names), to see that nothing was left beside a folder.
+std::vector<std::string> Names(const std::string& dir) {
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  return names;
 }
 
 class RunShardTest : public ::testing::Test {
@@ -127,6 +143,10 @@ TEST_F(RunShardTest, ShardsMergeIntoTheUnshardedFolderByteForByte) {
     json s = json::parse(f);
     edit(&s);
     std::ofstream(base_ + to + "/summary.json") << s.dump(2);
+    // as fnmpc would have written it (else the merge refuses the changed file first)
+    FolderManifest m = FolderManifest::Read(base_ + to);
+    m.Record(base_ + to, "summary.json");
+    m.Write(base_ + to);
   };
   edited("/s1", "/s1-other", [](json* s) { (*s)["first_seed"] = 9; });
   EXPECT_NE(MessageOf({base_ + "/s0", base_ + "/s1-other"}, base_ + "/m4").find("first_seed"),
@@ -139,6 +159,128 @@ TEST_F(RunShardTest, ShardsMergeIntoTheUnshardedFolderByteForByte) {
   for (const char* m : {"/m1", "/m2", "/m3", "/m4", "/m5"}) {
     EXPECT_FALSE(fs::exists(base_ + "/" + m + "/summary.json")) << m;
   }
+}
+
+TEST_F(RunShardTest, TheManifestListsEveryFileARunWritesAndNothingElse) {
+  // Given a run folder of 2 runs (reality on: plant files too),
+  RunFolderOptions o = options_;
+  o.runs = 2;
+  RunFolder(sc_, o, base_ + "/whole");
+  ASSERT_TRUE(sc_.reality.enabled);
+  ASSERT_TRUE(fs::exists(base_ + "/whole/run-02/plant-leader.yaml"));
+  // then its manifest lists every file in it, finished, with its size and digest.
+  const FolderManifest m = FolderManifest::Read(base_ + "/whole");
+  EXPECT_EQ(UnlistedFiles(base_ + "/whole", m), std::vector<std::string>{});
+  EXPECT_EQ(m.entries().size(), Files(base_ + "/whole").size() - 1);  // the manifest itself
+  for (const auto& [path, e] : m.entries()) {
+    ASSERT_TRUE(e.finished()) << path;
+    EXPECT_EQ(e.size, static_cast<std::int64_t>(fs::file_size(base_ + "/whole/" + path)));
+    EXPECT_EQ(e.sha256, FileSha256(base_ + "/whole/" + path)) << path;
+  }
+  EXPECT_EQ(TextSha256("abc"),  // FIPS 180-4's example
+            "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+}
+
+TEST_F(RunShardTest, OverwriteDeletesOnlyWhatFnmpcWrote) {
+  // Given a user's project folder that happens to hold a scenario.yaml and a summary.json,
+  const std::string project = base_ + "/project";
+  WriteText(project + "/scenario.yaml", "mine\n");
+  WriteText(project + "/summary.json", "{}\n");
+  WriteText(project + "/src/main.cpp", "int main() {}\n");
+  WriteText(project + "/notes.md", "notes\n");
+  const auto before = Files(project);
+  // then --overwrite refuses it, saying why, and deletes nothing.
+  try {
+    PrepareRunFolder(project, /*overwrite=*/true);
+    ADD_FAILURE() << "--overwrite emptied a folder fnmpc did not write";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(".fnmpc-manifest"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("delete it yourself"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(Files(project), before);
+  // Given a run folder of fnmpc into which the user put a file of their own (and one into a
+  // run folder),
+  const std::string run = base_ + "/run";
+  PrepareRunFolder(run, false);
+  RunFolder(sc_, options_, run);
+  WriteText(run + "/my-notes.txt", "keep me\n");
+  WriteText(run + "/run-02/my-plot.py", "keep me too\n");
+  // then --overwrite deletes fnmpc's files only: the user's stay (and the folders holding
+  // them), fnmpc's run folders without them are gone, the manifest lists nothing.
+  PrepareRunFolder(run, true);
+  const auto left = Files(run);
+  EXPECT_EQ(left.size(), 3u);
+  EXPECT_EQ(left.count("my-notes.txt"), 1u);
+  EXPECT_EQ(left.count("run-02/my-plot.py"), 1u);
+  EXPECT_EQ(left.count(".fnmpc-manifest"), 1u);
+  EXPECT_FALSE(fs::exists(run + "/run-01"));
+  EXPECT_TRUE(FolderManifest::Read(run).entries().empty());
+  // A manifest naming a path outside the folder is refused before anything is deleted.
+  WriteText(run + "/.fnmpc-manifest", "fnmpc-manifest 1\n- - ../project/notes.md\n");
+  EXPECT_THROW(PrepareRunFolder(run, true), std::runtime_error);
+  EXPECT_TRUE(fs::exists(project + "/notes.md"));
+}
+
+TEST_F(RunShardTest, ARefusedOrFailedMergeLeavesTheOutputAsItWas) {
+  // Given the two shards of an experiment and their merge,
+  Fly("s0", ParseShard("0/2"));
+  Fly("s1", ParseShard("1/2"));
+  const std::string merged = base_ + "/merged";
+  MergeRunFolders({base_ + "/s0", base_ + "/s1"}, merged);
+  const auto before = Files(merged);
+  const auto s1 = Files(base_ + "/s1");
+  const auto names = Names(base_);
+  const auto refused = [&](const std::vector<std::string>& shards, const std::string& out,
+                           const std::string& why) {
+    const std::string message = MessageOf(shards, out, /*overwrite=*/true);
+    EXPECT_NE(message.find(why), std::string::npos) << "'" << message << "' lacks '" << why << "'";
+    EXPECT_EQ(message.find("filesystem error"), std::string::npos) << message;
+  };
+  // a merge into one of its shards (or inside one) is refused, the shard untouched;
+  refused({base_ + "/s0", base_ + "/s1"}, base_ + "/s1", "its own input");
+  refused({base_ + "/s0", base_ + "/s1"}, base_ + "/s1/sub", "its own input");
+  refused({base_ + "/merged/s0", base_ + "/s1"}, merged, "lies inside -o");
+  EXPECT_EQ(Files(base_ + "/s1"), s1);
+  // a shard with a truncated CSV, with a changed one, or without a run folder is refused
+  // before the earlier merge is touched: it stays byte for byte, nothing is left beside it.
+  fs::copy(base_ + "/s1", base_ + "/s1-cut", fs::copy_options::recursive);
+  fs::resize_file(base_ + "/s1-cut/run-02/follower1.csv",
+                  fs::file_size(base_ + "/s1-cut/run-02/follower1.csv") / 2);
+  refused({base_ + "/s0", base_ + "/s1-cut"}, merged, "truncated or changed");
+  fs::copy(base_ + "/s1", base_ + "/s1-edited", fs::copy_options::recursive);
+  {
+    std::string csv = Files(base_ + "/s1").at("run-02/leader.csv");
+    csv[csv.size() - 2] = csv[csv.size() - 2] == '1' ? '2' : '1';  // same size, one digit
+    WriteText(base_ + "/s1-edited/run-02/leader.csv", csv);
+  }
+  refused({base_ + "/s0", base_ + "/s1-edited"}, merged, "SHA-256 differs");
+  fs::copy(base_ + "/s0", base_ + "/s0-gone", fs::copy_options::recursive);
+  fs::remove_all(base_ + "/s0-gone/run-03");
+  refused({base_ + "/s0-gone", base_ + "/s1"}, merged, "run-03/");
+  fs::copy(base_ + "/s0", base_ + "/s0-old", fs::copy_options::recursive);
+  fs::remove(base_ + "/s0-old/.fnmpc-manifest");  // a shard of an earlier fnmpc
+  refused({base_ + "/s0-old", base_ + "/s1"}, merged, "no .fnmpc-manifest");
+  EXPECT_EQ(Files(merged), before);
+  // into a new folder: none is made.
+  refused({base_ + "/s0-gone", base_ + "/s1"}, base_ + "/new", "run-03/");
+  EXPECT_FALSE(fs::exists(base_ + "/new"));
+  // A folder holding a file fnmpc did not write is not replaced.
+  WriteText(merged + "/mine.txt", "x\n");
+  refused({base_ + "/s0", base_ + "/s1"}, merged, "did not write");
+  fs::remove(merged + "/mine.txt");
+  // Without --overwrite a non-empty -o is refused.
+  EXPECT_NE(MessageOf({base_ + "/s0", base_ + "/s1"}, merged).find("--overwrite"),
+            std::string::npos);
+  EXPECT_EQ(Files(merged), before);
+  // A merge that succeeds replaces the earlier one whole, leaving nothing beside it.
+  for (const char* copy : {"s1-cut", "s1-edited", "s0-gone", "s0-old"}) {
+    fs::remove_all(base_ + "/" + copy);
+  }
+  EXPECT_EQ(Names(base_), names);
+  fs::remove(merged + "/run-01/leader.csv");  // damage the earlier merge: it is replaced
+  MergeRunFolders({base_ + "/s1", base_ + "/s0"}, merged, /*overwrite=*/true);
+  EXPECT_EQ(Files(merged), before);
+  EXPECT_EQ(Names(base_), names);
 }
 
 TEST_F(RunShardTest, ResumeRefusesAnotherExperimentsFolder) {

@@ -1,9 +1,15 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "fnmpc/model/true_plant.hpp"
 
+#include "fnmpc/core/types.hpp"
+
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <random>
+#include <string>
 #include <vector>
 
 namespace fnmpc::model {
@@ -96,6 +102,78 @@ TEST(TruePlantTest, RejectsSpreadsThatCouldMakeAParameterNonPositive) {
   s.attitude_bias_min = 0.05;
   s.attitude_bias_max = 0.01;
   EXPECT_THROW(s.Validate(), std::invalid_argument);
+}
+
+TEST(TruePlantTest, EveryDrawIsARealisableBodyAndTheOtherDrawsStayTheSeeds) {
+  // Given the largest spread the key accepts (0.33: independent per-axis factors in
+  // [0.01, 1.99]), for which the first draw breaks the triangle inequality for some seeds
+  // (Iyy > Ixx + Izz: MuJoCo refuses such a body),
+  PlantSpread wide;
+  wide.inertia = 0.33;
+  PlantSpread none = wide;
+  none.inertia = 0.0;
+  const VehicleParams p = Nominal();
+  // The first draw of the inertia factors, as DrawTruePlant makes it (its generator: the
+  // mass factor, then one per axis).
+  const auto first_draw = [&](std::uint64_t seed) {
+    std::seed_seq seq{static_cast<std::uint32_t>(seed), static_cast<std::uint32_t>(seed >> 32), 0u,
+                      0x91A47u};
+    std::mt19937_64 rng(seq);
+    std::normal_distribution<double> normal(0.0, 1.0);
+    normal(rng);  // the mass
+    Vec3 inertia;
+    for (int a = 0; a < 3; ++a) {
+      inertia[a] = p.inertia[a] * (1.0 + wide.inertia * std::clamp(normal(rng), -3.0, 3.0));
+    }
+    return inertia;
+  };
+  int redrawn = 0;
+  for (int k = 0; k < 2000; ++k) {
+    const std::uint64_t seed = 500 + static_cast<std::uint64_t>(k);
+    const TruePlant t = DrawTruePlant(p, 0.02, wide, seed, 0);
+    // then every drawn body is realisable,
+    ASSERT_EQ(UnrealisableInertia(t.params.inertia), "") << "seed " << seed;
+    // a realisable first draw is kept as it was (the shipped seeds' plants do not change),
+    // an unrealisable one is drawn again,
+    const Vec3 first = first_draw(seed);
+    if (UnrealisableInertia(first).empty()) {
+      ASSERT_EQ(t.params.inertia, first) << "seed " << seed;
+    } else {
+      ++redrawn;
+    }
+    // and every other parameter is the seed's, as without an inertia spread.
+    const TruePlant u = DrawTruePlant(p, 0.02, none, seed, 0);
+    ASSERT_EQ(t.params.mass, u.params.mass);
+    ASSERT_EQ(t.params.bias.roll, u.params.bias.roll);
+    ASSERT_EQ(t.params.attitude_kd[2], u.params.attitude_kd[2]);
+    ASSERT_EQ(t.motor_time_constant, u.motor_time_constant);
+  }
+  EXPECT_GT(redrawn, 0);  // the case the redraw is for occurs at this spread
+  std::printf("inertia spread 0.33: %d of 2000 first draws unrealisable, drawn again\n", redrawn);
+  // A nominal body that is itself not realisable draws none: PlantDrawError naming the key.
+  VehicleParams flat = p;
+  flat.inertia = Vec3(0.01, 0.01, 0.03);
+  PlantSpread narrow;
+  narrow.inertia = 0.01;
+  try {
+    DrawTruePlant(flat, 0.02, narrow, 1, 0);
+    ADD_FAILURE() << "an unrealisable nominal body was drawn";
+  } catch (const PlantDrawError& e) {
+    EXPECT_EQ(e.key(), "inertia");
+    EXPECT_NE(std::string(e.what()).find("triangle inequality"), std::string::npos) << e.what();
+  }
+}
+
+TEST(TruePlantTest, UnrealisableInertiaNamesTheBrokenInequality) {
+  EXPECT_EQ(UnrealisableInertia(Vec3(0.0123, 0.0136, 0.0107)), "");  // the shipped vehicle
+  EXPECT_EQ(UnrealisableInertia(Vec3(1.0, 1.0, 2.0)), "");           // a flat plate: equality
+  EXPECT_NE(UnrealisableInertia(Vec3(1.0, 1.0, 2.001)).find("Izz"), std::string::npos);
+  EXPECT_NE(UnrealisableInertia(Vec3(3.0, 1.0, 1.0)).find("Ixx"), std::string::npos);
+  EXPECT_NE(UnrealisableInertia(Vec3(1.0, 0.0, 1.0)).find("positive definite"), std::string::npos);
+  EXPECT_NE(UnrealisableInertia(Vec3(1.0, 1.0, std::nan(""))).find("Izz"), std::string::npos);
+  VehicleParams v;
+  v.inertia = Vec3(0.01, 0.01, 0.03);
+  EXPECT_THROW(v.Validate(), std::invalid_argument);
 }
 
 }  // namespace
