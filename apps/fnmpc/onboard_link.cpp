@@ -182,6 +182,8 @@ nlohmann::json OnboardLink::Summary() const {
             {"bytes_discarded", pc.bytes_discarded},
             {"crc_errors", pc.crc_errors},
             {"unknown_ids", pc.unknown_ids},
+            {"unknown_frames", pc.unknown_frames},
+            {"bytes_in_unknown_frames", pc.bytes_in_unknown_frames},
             {"bad_lengths", pc.bad_lengths},
             {"signature_failures", pc.signature_failures},
             {"frames_sent", impl_->conn.frames_sent()},

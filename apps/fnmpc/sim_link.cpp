@@ -7,8 +7,10 @@
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -85,6 +87,24 @@ double Max(const std::vector<double>& v) {
   return v.empty() ? kNaN : *std::max_element(v.begin(), v.end());
 }
 nlohmann::json Num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+
+/// Traffic a real autopilot sends besides what fnmpc decodes (PX4's onboard MAVLink mode
+/// streams GLOBAL_POSITION_INT, EXTENDED_SYS_STATE, ESTIMATOR_STATUS and more; MAVLink
+/// common.xml gives their ids, CRC_EXTRA and payload lengths): at each control tick a
+/// GLOBAL_POSITION_INT (33, 28 bytes) and an EXTENDED_SYS_STATE (245, 2 bytes: VTOL state,
+/// landed state) with the truth's landed state. The onboard side must skip them by their
+/// length without counting a byte as discarded (mavlink::Parser).
+void SendOtherTraffic(link::MavlinkConnection& conn, const EmulatedAutopilot& ap,
+                      const sim::TrueState& truth) {
+  std::array<std::uint8_t, 28> global_position{};
+  const auto altitude_mm = static_cast<std::int32_t>(std::lround(truth.position.z() * 1000.0));
+  std::memcpy(global_position.data() + 16, &altitude_mm, sizeof altitude_mm);  // relative_alt
+  conn.SendOther(33, 104, global_position);
+  // MAV_LANDED_STATE: 1 on ground, 2 in air.
+  const bool on_ground = !ap.armed() || truth.position.z() < sim::World::kRestHeight + 0.05;
+  const std::array<std::uint8_t, 2> extended{0, static_cast<std::uint8_t>(on_ground ? 1 : 2)};
+  conn.SendOther(245, 130, extended);
+}
 
 int SimLink(const SimLinkArgs& a) {
   const config::ScenarioConfig sc = config::LoadScenarioFile(a.scenario);
@@ -218,6 +238,7 @@ int SimLink(const SimLinkArgs& a) {
         out.Push(att);
         for (const mavlink::Message& x : out) v[i].conn->Send(x);
         out.Clear();
+        SendOtherTraffic(*v[i].conn, *v[i].autopilot, truth[i]);
         v[i].replied = false;
       }
       // Lockstep: every onboard computer answers this tick before the world moves on.

@@ -41,7 +41,6 @@ EmulatedAutopilot::EmulatedAutopilot(const EmulatedAutopilotSettings& settings)
 
 void EmulatedAutopilot::Disarmed(double now, EmulatorEvent why) {
   armed_ = false;
-  land_detector_.Reset();
   Note(why, now);
 }
 
@@ -132,7 +131,7 @@ void EmulatedAutopilot::OnFrame(const mavlink::Frame& frame, double now, Outbox*
     }
     if (ok) {
       armed_ = true;
-      land_detector_.Reset();
+      land_detector_.Reset(now);
       Note(EmulatorEvent::kArmed, now);
     } else {
       Note(EmulatorEvent::kArmRejected, now);

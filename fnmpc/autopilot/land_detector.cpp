@@ -2,6 +2,7 @@
 #include "fnmpc/autopilot/land_detector.hpp"
 
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace fnmpc::autopilot {
@@ -32,12 +33,16 @@ void LandDetector::Hysteresis::Update(double now, bool condition, double trigger
 LandDetector::LandDetector(AutopilotKind kind, const LandDetectorSettings& settings)
     : kind_(kind), settings_(settings) {
   CheckLimits(settings_, "LandDetectorSettings");
+  Reset(0.0);
 }
 
-void LandDetector::Reset() {
-  ground_contact_ = maybe_landed_ = landed_stage_ = land_complete_ = Hysteresis{};
-  landed_ = false;
-  landed_since_ = kNaN;
+void LandDetector::Reset(double now) {
+  const Hysteresis held{-std::numeric_limits<double>::infinity(), true};
+  ground_contact_ = maybe_landed_ = landed_stage_ = land_complete_ = held;
+  landed_ = true;
+  taken_off_ = false;
+  armed_at_ = now;
+  landed_since_ = now;
   filtered_accel_ = 0.0;
   last_time_ = kNaN;
 }
@@ -72,6 +77,7 @@ void LandDetector::Update(double now, const LandDetectorInput& in) {
   }
   last_time_ = now;
   if (!landed_) {
+    taken_off_ = true;
     landed_since_ = kNaN;
   } else if (std::isnan(landed_since_)) {
     landed_since_ = now;
@@ -83,8 +89,11 @@ bool LandDetector::disarm_allowed() const {
 }
 
 bool LandDetector::auto_disarm_due(double now) const {
-  return kind_ == AutopilotKind::kPx4 && settings_.disarm_land > 0.0 && landed_ &&
-         now - landed_since_ >= settings_.disarm_land - 1e-9;
+  if (kind_ != AutopilotKind::kPx4 || !landed_) return false;
+  if (taken_off_) {
+    return settings_.disarm_land > 0.0 && now - landed_since_ >= settings_.disarm_land - 1e-9;
+  }
+  return settings_.disarm_preflight > 0.0 && now - armed_at_ >= settings_.disarm_preflight - 1e-9;
 }
 
 }  // namespace fnmpc::autopilot

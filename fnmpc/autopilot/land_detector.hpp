@@ -18,9 +18,12 @@
 ///                            attitude), thrust <= MPC_MANTHR_MIN + 0.01, and the roll/pitch
 ///                            rate <= LNDMC_ROT_MAX
 ///   landed        (0.30 s):  maybe landed
-/// Commander (src/modules/commander/Commander.cpp, Commander::disarm) accepts a disarm that is
-/// not forced only when landed or maybe landed ("Disarming denied: not landed", ACK
-/// TEMPORARILY_REJECTED), and disarms by itself COM_DISARM_LAND after landed.
+/// An armed vehicle starts landed (the detector holds every stage while disarmed); it has
+/// taken off once a stage drops. Commander (src/modules/commander/Commander.cpp,
+/// Commander::disarm) accepts a disarm that is not forced only when landed or maybe landed
+/// ("Disarming denied: not landed", ACK TEMPORARILY_REJECTED), and disarms by itself
+/// COM_DISARM_LAND after landed once it has taken off since arming, COM_DISARM_PRFLT after
+/// arming when it never took off.
 ///
 /// ArduPilot Copter (ArduCopter/land_detector.cpp, config.h): land_complete when the motors are
 /// at their lower limit (throttle at its minimum), the earth-frame acceleration less gravity,
@@ -32,13 +35,14 @@ namespace fnmpc::autopilot {
 
 /// The parameters of both detectors (named after the autopilots' parameters and constants).
 struct LandDetectorSettings {
-  double thr_min = 0.12;      ///< PX4 MPC_THR_MIN
-  double thr_hover = 0.5;     ///< PX4 MPC_THR_HOVER
-  double manthr_min = 0.08;   ///< PX4 MPC_MANTHR_MIN
-  double z_vel_max = 0.25;    ///< PX4 LNDMC_Z_VEL_MAX [m/s]
-  double xy_vel_max = 1.5;    ///< PX4 LNDMC_XY_VEL_MAX [m/s]
-  double rot_max_deg = 20.0;  ///< PX4 LNDMC_ROT_MAX [deg/s]
-  double disarm_land = 2.0;   ///< PX4 COM_DISARM_LAND [s] (<= 0: never by itself)
+  double thr_min = 0.12;           ///< PX4 MPC_THR_MIN
+  double thr_hover = 0.5;          ///< PX4 MPC_THR_HOVER
+  double manthr_min = 0.08;        ///< PX4 MPC_MANTHR_MIN
+  double z_vel_max = 0.25;         ///< PX4 LNDMC_Z_VEL_MAX [m/s]
+  double xy_vel_max = 1.5;         ///< PX4 LNDMC_XY_VEL_MAX [m/s]
+  double rot_max_deg = 20.0;       ///< PX4 LNDMC_ROT_MAX [deg/s]
+  double disarm_land = 2.0;        ///< PX4 COM_DISARM_LAND [s] (<= 0: never by itself)
+  double disarm_preflight = 10.0;  ///< PX4 COM_DISARM_PRFLT [s] (<= 0: never by itself)
   /// ArduPilot: throttle at or below this counts as the motors' lower limit (the attitude
   /// controller's minimum output in GUIDED_NOGPS with thrust; 0 is the minimum).
   double lower_limit_thrust = 0.01;
@@ -55,6 +59,8 @@ struct LandDetectorSettings {
              "[deg/s] PX4 LNDMC_ROT_MAX");
     a->Visit("disarm_land", &disarm_land, Finite(),
              "[s] PX4 COM_DISARM_LAND: disarm this long after landed (<= 0: never)");
+    a->Visit("disarm_preflight", &disarm_preflight, Finite(),
+             "[s] PX4 COM_DISARM_PRFLT: disarm this long after arming without take-off");
     a->Visit("lower_limit_thrust", &lower_limit_thrust, NonNegative().AtMost(1.0, ""),
              "ArduPilot: thrust counted as the motors' lower limit");
   }
@@ -73,21 +79,23 @@ class LandDetector {
  public:
   LandDetector(AutopilotKind kind, const LandDetectorSettings& settings);
 
-  /// One step at `now` [s] of an armed vehicle; `Reset` when it disarms or takes off anew.
+  /// One step at `now` [s] of an armed vehicle.
   void Update(double now, const LandDetectorInput& in);
-  void Reset();
+  /// Armed at `now`: landed, not yet taken off.
+  void Reset(double now);
 
   /// A disarm by command would be accepted now (PX4: landed or maybe landed; ArduPilot:
   /// land_complete).
   [[nodiscard]] bool disarm_allowed() const;
-  /// PX4: landed for COM_DISARM_LAND; the autopilot disarms by itself. Never for ArduPilot.
+  /// PX4: landed for COM_DISARM_LAND after a take-off, or COM_DISARM_PRFLT after arming
+  /// without one; the autopilot disarms by itself. Never for ArduPilot.
   [[nodiscard]] bool auto_disarm_due(double now) const;
   [[nodiscard]] bool landed() const { return landed_; }
 
  private:
   /// Holds a condition's state true only after it was true for `trigger` [s].
   struct Hysteresis {
-    double since = kNaN;
+    double since = kNaN;  // the condition holds since (-inf: held before arming)
     bool state = false;
     void Update(double now, bool condition, double trigger);
   };
@@ -96,6 +104,8 @@ class LandDetector {
   LandDetectorSettings settings_;
   Hysteresis ground_contact_, maybe_landed_, landed_stage_, land_complete_;
   bool landed_ = false;
+  bool taken_off_ = false;
+  double armed_at_ = kNaN;
   double landed_since_ = kNaN;
   double filtered_accel_ = 0.0;
   double last_time_ = kNaN;

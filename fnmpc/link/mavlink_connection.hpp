@@ -33,6 +33,11 @@ class MavlinkConnection {
   /// send_failures(); the frame's sequence number is used up). Throws what the transport
   /// throws on a fatal error.
   bool Send(const mavlink::Message& message);
+  /// Writes one unsigned frame of a message this codec does not decode: id, its CRC_EXTRA and
+  /// the payload as given (the simulator's endpoint plays an autopilot's other traffic with
+  /// it). Same counting and sequence numbers as Send.
+  bool SendOther(std::uint32_t message_id, std::uint8_t crc_extra,
+                 std::span<const std::uint8_t> payload);
 
   /// Waits up to `timeout` [s] for bytes, reads once, parses them and calls
   /// on_frame(const mavlink::Frame&) per decoded frame; then reads on without waiting while
@@ -56,6 +61,7 @@ class MavlinkConnection {
       from_peer = false;
       parser_.Parse(std::span<const std::uint8_t>(read_buffer_.data(), n), count);
       if (from_peer) transport_->ConfirmLastSender();
+      if (transport_->datagrams()) parser_.EndOfDatagram();
       if (reads >= kMaxReadsPerPoll) break;
       n = transport_->Read(read_buffer_, 0.0);
     }

@@ -34,6 +34,9 @@ class Transport {
   /// datagram and no other sender, ever redirects the replies. No-op for the others.
   virtual void ConfirmLastSender() {}
 
+  /// Read returns whole units of the sender (UDP datagrams), not arbitrary byte chunks.
+  [[nodiscard]] virtual bool datagrams() const { return false; }
+
   /// The link, e.g. "udpout:127.0.0.1:14540" (for logs).
   [[nodiscard]] virtual std::string Describe() const = 0;
 };

@@ -35,6 +35,7 @@ class UdpTransport : public Transport {
   std::size_t Read(std::span<std::uint8_t> buffer, double timeout) override;
   bool Write(std::span<const std::uint8_t> bytes) override;
   void ConfirmLastSender() override;
+  [[nodiscard]] bool datagrams() const override { return true; }
   [[nodiscard]] std::string Describe() const override { return description_; }
 
   /// The bound local port (the ephemeral one for kUdpConnect or port 0).

@@ -43,7 +43,7 @@ struct Frame {
 /// bytes_in_unknown_frames, it counts in unknown_frames, and the failed candidates of false
 /// start bytes inside it are taken back from the failure counters. A healthy stream thus shows
 /// zero discarded bytes and zero failures (its last unknown frames stay counted as discarded
-/// until the next valid frame arrives).
+/// until the next valid frame arrives, or the end of their datagram, EndOfDatagram).
 struct ParserCounters {
   std::uint64_t bytes_received = 0;           ///< bytes fed in
   std::uint64_t frames_ok = 0;                ///< frames decoded and handed out
@@ -114,6 +114,12 @@ class Parser {
   template <class OnFrame>
   void Parse(std::span<const std::uint8_t> bytes, OnFrame&& on_frame) {
     for (const std::uint8_t b : bytes) Parse(b, on_frame);
+  }
+
+  /// The sender's unit of bytes (a UDP datagram) ends here: a run of unknown frames that ends
+  /// exactly here, with nothing buffered, is confirmed as if a valid frame followed.
+  void EndOfDatagram() {
+    if (run_active_ && end_ == 0 && counters_.bytes_received == run_end_) ConfirmUnknownRun();
   }
 
   /// Drops the buffered bytes of an incomplete frame (counted as discarded), e.g. after a

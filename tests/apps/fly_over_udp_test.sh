@@ -73,6 +73,11 @@ for v in vehicles:
     assert fly["stop"] == "disarmed", (v, fly["stop"], fly["session_reason"])
     assert fly["setpoints_skipped"] == 0, (v, fly["setpoints_skipped"])
     assert fly["link_counters"]["crc_errors"] == 0, fly["link_counters"]
+    # The endpoint's other traffic (ids fnmpc does not decode) is skipped, not discarded
+    assert fly["link_counters"]["bytes_discarded"] == 0, fly["link_counters"]
+    assert fly["link_counters"]["unknown_frames"] > 0, fly["link_counters"]
+    # Disarmed by the emulated autopilot's rules (land detector), not left armed
+    assert link["vehicles"][v]["armed_at_end"] is False, (v, link["vehicles"][v])
     assert fly["failsafe"] is False and fly["fallbacks"] == 0, fly
     states = [e["state"] for e in fly["events"]]
     assert states[:4] == ["warming_up", "requesting_mode", "arming", "active"], states

@@ -248,6 +248,26 @@ TEST(ParserTest, ARunOfUnknownFramesWithFalseStartsInsideIsSkippedWithoutFailure
   ExpectConservation(parser);
 }
 
+TEST(ParserTest, UnknownFramesEndingTheirDatagramAreConfirmedByItsEnd) {
+  Encoder encoder(1, 1);
+  const Bytes good = EncodeToVector(&encoder, Heartbeat{.custom_mode = 3, .mavlink_version = 3});
+  const Bytes unknown = RawFrame(245, 130, Bytes{0, 1});
+  Parser parser;
+  ParseAll(&parser, Concat({good, unknown}));
+  EXPECT_EQ(parser.counters().bytes_discarded, unknown.size());  // not yet known
+  parser.EndOfDatagram();
+  EXPECT_EQ(parser.counters().bytes_discarded, 0U);
+  EXPECT_EQ(parser.counters().unknown_frames, 1U);
+  // A datagram ending inside an unknown frame's declared length confirms nothing
+  Parser cut;
+  const Bytes partial(unknown.begin(), unknown.end() - 1);
+  ParseAll(&cut, Concat({good, partial}));
+  cut.EndOfDatagram();
+  EXPECT_EQ(cut.counters().unknown_frames, 0U);
+  ExpectConservation(parser);
+  ExpectConservation(cut);
+}
+
 TEST(ParserTest, AnUnknownHeaderInGarbageNeverSwallowsTheValidFrameInsideItsDeclaredLength) {
   // Given a false start claiming an unknown id and 200 payload bytes, then a valid frame
   // well inside those 200 bytes

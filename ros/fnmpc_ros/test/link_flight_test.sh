@@ -25,15 +25,21 @@ pids+=("$!")
 for _ in $(seq 100); do rosnode list > /dev/null 2>&1 && break; sleep 0.1; done
 rosnode list > /dev/null 2>&1 || fail "no ROS master at $ROS_MASTER_URI"
 
-# triangle_20s lands from 17 s: 24 s leave the landing time to finish (the run's outcome and
-# sim-link's "armed, flew and landed" check it), everything else as given.
+# The link's handshake (warm-up, mode and arming confirmed by 1 Hz HEARTBEATs) needs the
+# take-off at handshake_time (5 s) or later: the take-off, the leader's legs and the landing
+# move 4 s later in both runs. triangle_20s lands from 17 s (21 s here): 28 s leave the landing
+# time to finish (the run's outcome and sim-link's "armed, flew and landed" check it),
+# everything else as given.
 /usr/bin/python3 - "$scenario" "$work/scenario.yaml" <<'PY'
 import os, sys, yaml
 src, dst = sys.argv[1:]
 s = yaml.safe_load(open(src))
 for key in ("vehicle_file", "sensors_file"):
     s[key] = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(src)), s[key]))
-s["duration"] = 24.0
+s["phases"]["takeoff_time"] += 4.0
+s["leader"]["start_time"] += 4.0
+s["phases"]["landing_time"] += 4.0
+s["duration"] = 28.0
 yaml.safe_dump(s, open(dst, "w"), sort_keys=False)
 PY
 scenario=$work/scenario.yaml
