@@ -834,6 +834,26 @@ def main(argv=None):
         return EXIT_ERROR
 
 
+def check_new_campaign_folder(out):
+    """A campaign writes over its own files in OUT (logs, scripts, campaign.json, the merge):
+    a folder without campaign.json must be new or empty (or hold only the empty shards/ and
+    logs/ of an attempt stopped at once), so that no file of anyone else is overwritten."""
+    try:
+        entries = os.listdir(out)
+    except FileNotFoundError:
+        return
+    except OSError as e:
+        raise CampaignError(f"{out}: {e.strerror}")
+    if not os.path.isdir(out):
+        raise CampaignError(f"{out}: exists and is not a folder")
+    foreign = [e for e in entries
+               if not (e in ("shards", "logs") and os.path.isdir(os.path.join(out, e))
+                       and not os.listdir(os.path.join(out, e)))]
+    if foreign:
+        raise CampaignError(f"{out}: not empty and not a campaign folder (no campaign.json; "
+                            f"holds {sorted(foreign)[0]!r}): choose another -o")
+
+
 def campaign(args):
     c = load_campaign(args.campaign)
     if args.out:
@@ -846,6 +866,8 @@ def campaign(args):
         diff = next((k for k in new if old.get(k) != new[k]), "experiment")
         raise CampaignError(f"{out} holds another campaign (key '{diff}': {old.get(diff)!r} "
                             f"there, {new.get(diff)!r} now): choose another -o or remove it")
+    if not earlier:
+        check_new_campaign_folder(out)
     for sub in ("shards", "logs"):
         os.makedirs(os.path.join(out, sub), exist_ok=True)
     shards = [Shard(c, i, fnmpc) for i in range(c["shards"])]

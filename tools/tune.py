@@ -22,6 +22,7 @@ good as the defaults on the held-out scenarios with no more fallbacks, 3 otherwi
 reported), 1 on an error, 130/143 when stopped.
 """
 import argparse
+import hashlib
 import json
 import math
 import os
@@ -136,11 +137,35 @@ class Evaluator:
                 "failures": len(s.get("failures", [])), "runs": s.get("runs")}
 
 
+FOLDERS = {}  # scenario path -> its folder name under each evaluation (set by main)
+
+
+def folder_names(paths):
+    """A folder name per scenario path: the file name without .yaml, unique among `paths`;
+    scenarios of the same file name in different folders get their path's digest appended
+    (stable across reruns, so that a resumed study finds its evaluations)."""
+    stem = {p: os.path.splitext(os.path.basename(p))[0] for p in paths}
+    names = {}
+    for p in paths:
+        same = [q for q in paths if stem[q] == stem[p] and os.path.abspath(q) != os.path.abspath(p)]
+        digest = hashlib.sha256(os.path.abspath(p).encode()).hexdigest()[:8]
+        names[p] = f"{stem[p]}-{digest}" if same else stem[p]
+    return names
+
+
+def shown(path):
+    """The scenario as progress lines name it: its file name, or its path when another
+    scenario has the same file name."""
+    stem = os.path.splitext(os.path.basename(path))[0]
+    return os.path.basename(path) if FOLDERS.get(path, stem) == stem else path
+
+
 def evaluate(ev, label, scenarios, factors, seed, runs):
+    """Flies `scenarios` [(path, doc)] with `factors`; results keyed by scenario path."""
     results = {}
     for path, doc in scenarios:
-        name = os.path.splitext(os.path.basename(path))[0]
-        results[name] = ev.fly(f"{label}/{name}", path, doc, factors, seed, runs)
+        name = FOLDERS.get(path) or os.path.splitext(os.path.basename(path))[0]
+        results[path] = ev.fly(f"{label}/{name}", path, doc, factors, seed, runs)
     errors = [r["error"] for r in results.values()]
     mean = (sum(errors) / len(errors)) if all(e is not None for e in errors) else math.inf
     return mean, results
@@ -173,6 +198,13 @@ def main(argv=None):
     overlap = {os.path.abspath(s) for s in args.scenarios} & {os.path.abspath(s) for s in args.held_out}
     if overlap:
         raise TuneError(f"held-out scenarios must not be tuned on: {', '.join(sorted(overlap))}")
+    for group, name in ((args.scenarios, "tuning"), (args.held_out, "held-out")):
+        seen = set()
+        for s in group:
+            if os.path.abspath(s) in seen:
+                raise TuneError(f"{s}: given twice as a {name} scenario")
+            seen.add(os.path.abspath(s))
+    FOLDERS.update(folder_names(args.scenarios + args.held_out))
     try:
         import optuna
     except ImportError as e:
@@ -239,17 +271,15 @@ def main(argv=None):
     # Held-out scenarios: defaults and the best weights, on seeds no trial flew.
     table = []
     for path, doc in held_out:
-        name = os.path.splitext(os.path.basename(path))[0]
         _, d = evaluate(ev, f"{args.study}/held-out/default", [(path, doc)], defaults, HELD_OUT_SEED,
                         args.held_out_seeds)
         _, t = evaluate(ev, f"{args.study}/held-out/tuned-{best.number:03d}", [(path, doc)], best.params,
                         HELD_OUT_SEED, args.held_out_seeds)
-        d, t = d[name], t[name]
+        d, t = d[path], t[path]
         change = (t["error"] - d["error"]) / d["error"] if d["error"] and t["error"] is not None else None
         table.append({"scenario": path, "seeds": args.held_out_seeds, "default": d, "tuned": t,
                       "change": change})
-    weights = {os.path.basename(path): scaled(follower_weights(doc, path), best.params)
-               for path, doc in tuning}
+    weights = {path: scaled(follower_weights(doc, path), best.params) for path, doc in tuning}
     report = {
         "trials": [{"number": t.number, "value": t.value, "params": t.params, **t.user_attrs}
                    for t in study.trials if t.state.is_finished()],

@@ -657,10 +657,14 @@ json Merge(const std::vector<std::string>& shards, const std::string& out, bool 
                    old.string(), out);
       }
     }
-  } catch (...) {
+  } catch (const fs::filesystem_error&) {
     std::error_code ec;
     fs::remove_all(tmp, ec);  // ours alone: made above, filled by this merge
-    throw;
+    throw;                    // MergeRunFolders names its paths
+  } catch (const std::exception& e) {
+    std::error_code ec;
+    fs::remove_all(tmp, ec);
+    throw std::runtime_error(fmt::format("merge: {}; -o {} left as it was", e.what(), out));
   }
   return summary;
 }

@@ -48,10 +48,34 @@ nlohmann::json EffectiveFollowerWeights(const std::vector<std::string>& scenario
   return all;
 }
 
+/// Marks an output folder of `fnmpc tune`.
+const char* const kTuneMarker = ".fnmpc-tune";
+
+/// Tune writes over its own files in OUT (tune.json, tuned-weights.yaml, trials/...; a rerun
+/// continues the study there), so OUT must be new, empty or marked by an earlier tune; the
+/// marker is written before anything else.
+void ClaimTuneFolder(const std::string& out) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::exists(out, ec) && !fs::is_directory(out, ec)) {
+    throw std::runtime_error(out + ": exists and is not a folder");
+  }
+  const std::string marker = PathInside(out, kTuneMarker);
+  if (fs::is_directory(out, ec) && !fs::is_empty(out, ec) && !fs::is_regular_file(marker, ec)) {
+    throw std::runtime_error(
+        out + ": not empty and not an output folder of `fnmpc tune` (no " + kTuneMarker +
+        "; tune writes over its own files there): choose another -o (a folder of an earlier "
+        "fnmpc tune, which left no marker, must be deleted by hand)");
+  }
+  fs::create_directories(out, ec);
+  if (ec) throw std::runtime_error(out + ": cannot create the folder: " + ec.message());
+  WriteFileAtomically(marker, "fnmpc tune output folder (docs/tuning.md)\n");
+}
+
 int Tune(const TuneArgs& a) {
   std::vector<std::string> every = a.scenarios;
   every.insert(every.end(), a.held_out.begin(), a.held_out.end());
-  std::filesystem::create_directories(a.out);
+  ClaimTuneFolder(a.out);
   const std::string weights_file = PathInside(a.out, "effective-weights.json");
   WriteFileAtomically(weights_file, EffectiveFollowerWeights(every).dump(2) + "\n");
   std::error_code ec;

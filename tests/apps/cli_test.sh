@@ -250,6 +250,13 @@ expect 1 "merge into one of its shards refused" -- "$fnmpc" merge "$tmp/m/s0" "$
 stderr_has "its own input" "the refusal says why"
 snapshot "$tmp/m/s1" | cmp -s - "$tmp/m/s1-before" || { echo "FAIL: a refused merge changed its shard"; fails=$((fails + 1)); }
 snapshot "$tmp/m/out" | cmp -s - "$tmp/m/before" || { echo "FAIL: a refused merge changed -o"; fails=$((fails + 1)); }
+# A write failing mid-merge (the file size limit stands in for a full disk: write() fails
+# with EFBIG as it would with ENOSPC): exit 1 naming the file, -o as it was, nothing left.
+expect 1 "merge failing on a write" -- bash -c 'trap "" XFSZ; ulimit -f 100; exec "$0" merge "$1" "$2" -o "$3" --overwrite' \
+  "$fnmpc" "$tmp/m/s1" "$tmp/m/s0" "$tmp/m/out"
+stderr_has "write failed: File too large; -o .* left as it was" "the failed write is named"
+snapshot "$tmp/m/out" | cmp -s - "$tmp/m/before" || { echo "FAIL: a failed merge changed -o"; fails=$((fails + 1)); }
+ls -a "$tmp/m" | grep -q '^\.out\.' && { echo "FAIL: a failed merge left its temporary folder"; fails=$((fails + 1)); }
 expect 0 "merge --overwrite replaces an earlier merge" -- "$fnmpc" merge "$tmp/m/s1" "$tmp/m/s0" -o "$tmp/m/out" --overwrite
 snapshot "$tmp/m/out" | cmp -s - "$tmp/m/before" || { echo "FAIL: the replaced merge differs"; fails=$((fails + 1)); }
 ls -a "$tmp/m" | grep -q '^\.out\.' && { echo "FAIL: the merge left a temporary folder"; fails=$((fails + 1)); }

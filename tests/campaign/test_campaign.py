@@ -159,6 +159,18 @@ def test_a_folder_of_another_campaign_is_refused(tmp_path):
     assert "holds another campaign (key 'runs': 6 there, 4 now)" in r.stderr, r.stderr
 
 
+def test_a_folder_that_is_no_campaign_is_refused_and_kept(tmp_path):
+    # a user's folder as -o: refused before anything is written, its files untouched
+    path = write_campaign(str(tmp_path))
+    os.makedirs(tmp_path / "out" / "src")
+    (tmp_path / "out" / "notes.md").write_text("mine\n")
+    r = run(campaign_cmd(path, "local", "-q"))
+    assert r.returncode == 1
+    assert "not empty and not a campaign folder" in r.stderr, r.stderr
+    assert sorted(os.listdir(tmp_path / "out")) == ["notes.md", "src"]
+    assert "Traceback" not in r.stderr
+
+
 # ---------------------------------------------------------------------------------------------
 # local
 

@@ -8,6 +8,7 @@ scenario without follower weights is tuned from the struct's defaults, as it fli
 import json
 import os
 import subprocess
+import sys
 
 import pytest
 import yaml
@@ -102,3 +103,40 @@ def test_bad_input_is_refused_naming_it(tmp_path):
     r = subprocess.run([FNMPC, "tune", TRIANGLE, "--held-out", HELD_OUT, "--trials", "1"],
                        capture_output=True, text=True)
     assert r.returncode == 2  # CLI range: at least the defaults and one proposal
+
+
+def test_scenarios_are_told_apart_by_path_not_file_name(tmp_path):
+    # two scenarios of the same file name in different folders: two folder names, both flown
+    sys.path.insert(0, os.path.join(SOURCE, "tools"))
+    import tune as tool
+    a, b = str(tmp_path / "a" / "triangle.yaml"), str(tmp_path / "b" / "triangle.yaml")
+    other = HELD_OUT
+    names = tool.folder_names([a, b, other])
+    assert names[other] == "flying-leader-paper"  # a file name that occurs once keeps it
+    assert names[a] != names[b] and names[a].startswith("triangle-"), names
+    assert tool.folder_names([a, b, other]) == names  # stable: a rerun finds its folders
+
+    class Recorder:
+        def __init__(self):
+            self.labels = []
+
+        def fly(self, label, path, doc, factors, seed, runs):
+            self.labels.append(label)
+            return {"error": 1.0 if path == a else 3.0, "fallbacks": 0, "failures": 0, "runs": 1}
+
+    tool.FOLDERS.update(names)
+    ev = Recorder()
+    mean, results = tool.evaluate(ev, "trial-000", [(a, {}), (b, {})], {}, 1000, 1)
+    assert set(results) == {a, b}
+    assert len(set(ev.labels)) == 2, ev.labels
+    assert mean == 2.0  # both scenarios count
+    assert tool.shown(a) == a and tool.shown(other) == "flying-leader-paper.yaml"
+
+
+def test_a_folder_tune_did_not_make_is_refused_and_kept(tmp_path):
+    (tmp_path / "notes.md").write_text("mine\n")
+    r = subprocess.run([FNMPC, "tune", TRIANGLE, "--held-out", HELD_OUT, "--trials", "2",
+                        "-o", str(tmp_path)], capture_output=True, text=True)
+    assert r.returncode == 1
+    assert ".fnmpc-tune" in r.stderr, r.stderr
+    assert sorted(os.listdir(tmp_path)) == ["notes.md"]
