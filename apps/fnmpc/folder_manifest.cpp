@@ -170,9 +170,13 @@ void FolderManifest::Write(const std::string& dir) const {
   WriteFileAtomically(ManifestPath(dir), text);
 }
 
-void FolderManifest::Append(const std::string& dir, const std::string& path) const {
-  const auto it = entries_.find(path);
-  const std::string line = it == entries_.end() ? "gone - " + path + "\n" : Line(path, it->second);
+void FolderManifest::Append(const std::string& dir, const std::vector<std::string>& paths) const {
+  if (paths.empty()) return;
+  std::string line;
+  for (const std::string& path : paths) {
+    const auto it = entries_.find(path);
+    line += it == entries_.end() ? "gone - " + path + "\n" : Line(path, it->second);
+  }
   const std::string file = ManifestPath(dir);
   std::FILE* f = std::fopen(file.c_str(), "ab");
   if (f == nullptr) ThrowFileError(file, "cannot append", errno);

@@ -46,9 +46,9 @@ class FolderManifest {
   void Forget(const std::string& path);
   /// Writes <dir>/.fnmpc-manifest atomically, one sorted line per file.
   void Write(const std::string& dir) const;
-  /// Appends the current line of `path` (`gone - PATH` when it is not listed) to
-  /// <dir>/.fnmpc-manifest, synced before returning.
-  void Append(const std::string& dir, const std::string& path) const;
+  /// Appends the current lines of `paths` (`gone - PATH` for one not listed) to
+  /// <dir>/.fnmpc-manifest in one write, synced before returning.
+  void Append(const std::string& dir, const std::vector<std::string>& paths) const;
 
   [[nodiscard]] const std::map<std::string, ManifestEntry>& entries() const { return entries_; }
 

@@ -227,10 +227,8 @@ json RunFolder(const config::ScenarioConfig& sc, const RunFolderOptions& options
   std::mutex manifest_mutex;
   const auto plan = [&](const std::vector<std::string>& files) {
     const std::lock_guard<std::mutex> lock(manifest_mutex);
-    for (const std::string& f : files) {
-      manifest.Plan(f);
-      manifest.Append(dir, f);
-    }
+    for (const std::string& f : files) manifest.Plan(f);
+    manifest.Append(dir, files);
   };
   const auto record = [&](const std::vector<std::string>& files) {
     const std::lock_guard<std::mutex> lock(manifest_mutex);
@@ -241,8 +239,8 @@ json RunFolder(const config::ScenarioConfig& sc, const RunFolderOptions& options
       } else {
         manifest.Forget(f);
       }
-      manifest.Append(dir, f);
     }
+    manifest.Append(dir, files);
   };
   if (!options.scenario_file.empty() && fs::is_regular_file(options.scenario_file)) {
     std::error_code ec;

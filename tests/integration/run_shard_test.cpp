@@ -215,10 +215,25 @@ TEST_F(RunShardTest, OverwriteDeletesOnlyWhatFnmpcWrote) {
   EXPECT_EQ(left.count(".fnmpc-manifest"), 1u);
   EXPECT_FALSE(fs::exists(run + "/run-01"));
   EXPECT_TRUE(FolderManifest::Read(run).entries().empty());
-  // A manifest naming a path outside the folder is refused before anything is deleted.
+  // A run killed mid-way (its manifest as appended, not yet sorted): the files it began go
+  // with their temporaries, a line `gone` took back keeps its file.
+  WriteText(run + "/run-01/leader.csv.part", "t,phase\n");
+  WriteText(run + "/run-01/follower1.csv", "t,phase\n");
+  WriteText(run + "/.fnmpc-manifest",
+            "fnmpc-manifest 1\n- - run-01/leader.csv\n- - run-01/follower1.csv\n"
+            "gone - run-01/follower1.csv\n");
+  PrepareRunFolder(run, true);
+  EXPECT_FALSE(fs::exists(run + "/run-01/leader.csv.part"));
+  EXPECT_TRUE(fs::exists(run + "/run-01/follower1.csv"));
+  // A manifest naming a path outside the folder, or through a symbolic link, is refused
+  // before anything is deleted.
   WriteText(run + "/.fnmpc-manifest", "fnmpc-manifest 1\n- - ../project/notes.md\n");
   EXPECT_THROW(PrepareRunFolder(run, true), std::runtime_error);
-  EXPECT_TRUE(fs::exists(project + "/notes.md"));
+  fs::create_directory_symlink(project, run + "/link");
+  WriteText(run + "/.fnmpc-manifest", "fnmpc-manifest 1\n- - my-notes.txt\n- - link/notes.md\n");
+  EXPECT_THROW(PrepareRunFolder(run, true), std::runtime_error);
+  EXPECT_TRUE(fs::exists(run + "/my-notes.txt"));  // listed, but the refusal came first
+  EXPECT_EQ(Files(project), before);
 }
 
 TEST_F(RunShardTest, ARefusedOrFailedMergeLeavesTheOutputAsItWas) {
