@@ -384,6 +384,9 @@ int RunImportUlog(const ImportOptions& o) {
   if (auto n = reader.ParameterValue("CA_ROTOR_COUNT")) rotors = static_cast<int>(*n);
   std::vector<Segment> hover;
   std::vector<double> hover_u, hover_motor, hover_v;
+  // Per hover window: sum of thrust, sum of voltage, thrust samples, voltage samples (so that
+  // hovers at different battery voltages can be told apart).
+  std::vector<std::array<double, 4>> window_sums;
   {
     std::size_t att_cursor = 0;
     std::vector<std::size_t> run;
@@ -423,19 +426,28 @@ int RunImportUlog(const ImportOptions& o) {
                              : thrust_source == "actuator_controls_0"   ? *controls
                                                                         : sp;
     std::size_t att_cursor = 0, bat_cursor = 0, mot_cursor = 0;
+    window_sums.assign(hover.size(), {0.0, 0.0, 0.0, 0.0});
     for (std::size_t k = 0; k < src.size(); ++k) {
       const std::uint64_t t = src.timestamp[k];
-      bool in = false;
-      for (const Segment& s : hover) in |= s.Contains(Seconds(t));
-      if (!in) continue;
+      std::size_t window = hover.size();
+      for (std::size_t w = 0; w < hover.size(); ++w) {
+        if (hover[w].Contains(Seconds(t))) window = w;
+      }
+      if (window == hover.size()) continue;
       const double u = thrust_source == "vehicle_thrust_setpoint" ? -src.Column("xyz[2]")[k]
                        : thrust_source == "actuator_controls_0"   ? src.Column("control[3]")[k]
                                                                   : sp_thrust(k);
       const double tilt = TiltOf(AttitudeAt(att, "q", t, att_cursor));
       hover_u.push_back(u * std::cos(tilt));
+      window_sums[window][0] += hover_u.back();
+      window_sums[window][2] += 1;
       if (battery != nullptr) {
         const long b = HoldIndex(battery->timestamp, t, bat_cursor);
-        if (b >= 0) hover_v.push_back(battery->Column("voltage_v")[static_cast<std::size_t>(b)]);
+        if (b >= 0) {
+          hover_v.push_back(battery->Column("voltage_v")[static_cast<std::size_t>(b)]);
+          window_sums[window][1] += hover_v.back();
+          window_sums[window][3] += 1;
+        }
       }
       if (motors != nullptr) {
         const long m = HoldIndex(motors->timestamp, t, mot_cursor);
@@ -468,7 +480,17 @@ int RunImportUlog(const ImportOptions& o) {
   double hover_time = 0;
   for (const Segment& s : hover) hover_time += s.duration();
   nlohmann::json hj;
-  hj["windows"] = segments_json(hover);
+  nlohmann::json windows = nlohmann::json::array();
+  for (std::size_t w = 0; w < hover.size(); ++w) {
+    const auto& ws = window_sums[w];
+    nlohmann::json e = {{"start", hover[w].start},
+                        {"end", hover[w].end},
+                        {"samples", static_cast<std::size_t>(ws[2])}};
+    if (ws[2] > 0) e["thrust_normalised"] = ws[0] / ws[2];
+    if (ws[3] > 0) e["voltage"] = ws[1] / ws[3];
+    windows.push_back(e);
+  }
+  hj["windows"] = windows;
   hj["duration_s"] = hover_time;
   hj["criteria"] = {{"speed_below_m_s", o.hover_speed},
                     {"height_above_m", o.hover_min_height},

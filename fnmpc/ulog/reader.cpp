@@ -480,7 +480,7 @@ void Reader::HandleFormat(std::span<const std::uint8_t> p, std::uint64_t at) {
   formats_.push_back(std::move(f));
 }
 
-void Reader::Resolve(int index, int depth, std::uint64_t at) {
+void Reader::Resolve(int index, int depth) {
   Format& f = formats_[index];
   if (f.resolved) return;
   if (depth > kMaxNesting) {
@@ -499,7 +499,7 @@ void Reader::Resolve(int index, int depth, std::uint64_t at) {
                               "' has unknown type '" + field.type_name + "'");
       }
       field.nested = it->second;
-      Resolve(it->second, depth + 1, at);  // may grow nothing: formats_ is not resized here
+      Resolve(it->second, depth + 1);  // formats_ is not resized here: references stay valid
       field.element_size = formats_[it->second].size;
     } else {
       field.element_size = BasicSize(field.type);
@@ -680,7 +680,7 @@ std::string Reader::HandleData(char type, std::span<const std::uint8_t> p, std::
                subs_[sub_by_id_[sub.msg_id]].name + "', '" + sub.name + "')";
       }
       sub.format = it->second;
-      Resolve(sub.format, 0, at);  // a bad nested type is a FormatError naming its definition
+      Resolve(sub.format, 0);  // a bad nested type is a FormatError naming its definition
       const Format& f = formats_[sub.format];
       if (f.size - f.trailing_padding > 0xFFFF - 2) {
         return "subscribed format '" + sub.name + "' has " + std::to_string(f.size) +

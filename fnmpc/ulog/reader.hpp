@@ -280,7 +280,7 @@ class Reader {
   void HandleFormat(std::span<const std::uint8_t> p, std::uint64_t at);
   Info ParseInfo(std::span<const std::uint8_t> p, std::uint64_t at, bool multi);
   Parameter ParseParameter(std::span<const std::uint8_t> p, std::uint64_t at, bool with_default);
-  void Resolve(int index, int depth, std::uint64_t at);
+  void Resolve(int index, int depth);
   void Flatten(const Format& f, std::size_t base, const std::string& prefix,
                std::vector<Column>& out) const;
   /// Handles one data-section message; returns an empty string or what is corrupt about it.
