@@ -672,7 +672,11 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
                          "Identification inputs (attitude_steps.csv, flight.csv) from a PX4 ULog "
                          "flight log, with a summary of the log (docs/ulog.md)");
   sub->add_option("log", o->log, "PX4 log (.ulg)")->required();
-  sub->add_option("-o,--output", o->output, "folder to write (created if missing)")->required();
+  sub->add_option("-o,--output", o->output, "folder to write (created if missing)")
+      ->required()
+      ->check(CLI::Validator(
+          [](std::string& v) { return v.empty() ? std::string("must not be empty") : ""; }, "DIR",
+          "NonEmpty"));
   sub->add_option("--mass", o->mass,
                   "vehicle mass [kg]: flight.csv's thrust_cmd in N = mass g u / u_hover (without "
                   "it flight.csv is not written)")

@@ -179,6 +179,28 @@ TEST(ImportUlog, RealLogsImportAndSayWhatIsMissing) {
   EXPECT_TRUE(fs::exists(old / "summary.json"));
 }
 
+TEST(ImportUlog, TruncatedLogIsImportedUpToTheCutWithItsOffset) {
+  // The SITL log cut at 7 MB (mid-flight, inside a data message at offset 6999899).
+  const fs::path cut = fs::temp_directory_path() / "fnmpc_import_ulog_cut.ulg";
+  {
+    std::ifstream in(kLogs / "sitl" / "sih_quadx_sysid_a.ulg", std::ios::binary);
+    std::vector<char> head(7000000);
+    in.read(head.data(), static_cast<std::streamsize>(head.size()));
+    std::ofstream(cut, std::ios::binary | std::ios::trunc)
+        .write(head.data(), static_cast<std::streamsize>(head.size()));
+  }
+  const fs::path dir = fs::temp_directory_path() / "fnmpc_import_ulog_cut";
+  const CommandResult r = Import(cut, dir, "--mass 1.0");
+  ASSERT_EQ(r.code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("TRUNCATED"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("warning: offset 6999899: truncated: the file ends inside a 'D' message"),
+            std::string::npos)
+      << r.out;
+  const nlohmann::json summary = nlohmann::json::parse(Slurp(dir / "summary.json"));
+  EXPECT_TRUE(summary["truncated"].get<bool>());
+  EXPECT_GT(config::ReadCsv((dir / "flight.csv").string(), kFlightColumns, "t").rows(), 1000u);
+}
+
 TEST(ImportUlog, MissingTopicOrNotULogExitsOneNamingIt) {
   testing::Builder b;
   b.FlagBits(0);
