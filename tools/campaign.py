@@ -123,13 +123,32 @@ class Parser:
 TOP_KEYS = ("scenario", "runs", "seed", "shards", "out", "run", "slurm", "dask")
 
 
+def not_utf8(path, raw, offset):
+    """FILE:LINE: key 'k': the message for a byte at `offset` that is not UTF-8; the key is
+    the top-level key whose region holds the line (its last `name:` line at column 0 up to it),
+    `(top level)` when there is none."""
+    line = raw.count(b"\n", 0, offset) + 1
+    column = offset - (raw.rfind(b"\n", 0, offset) + 1) + 1
+    key = "(top level)"
+    for text in raw[:raw.find(b"\n", offset) if b"\n" in raw[offset:] else len(raw)].split(b"\n"):
+        m = re.match(rb"([A-Za-z_][A-Za-z0-9_]*)\s*:", text)
+        if m:
+            key = m.group(1).decode("ascii")
+    return (f"{path}:{line}: key '{key}': not valid UTF-8 (byte 0x{raw[offset]:02x} at column "
+            f"{column})")
+
+
 def load_campaign(path):
     """Returns the checked campaign as a dict with absolute paths and every default filled."""
     try:
-        with open(path, encoding="utf-8") as f:
-            text = f.read()
+        with open(path, "rb") as f:
+            raw = f.read()
     except OSError as e:
         raise CampaignError(f"{path}: cannot read: {e.strerror}")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise CampaignError(not_utf8(path, raw, e.start)) from None
     p = Parser(path)
     try:
         root = yaml.compose(text)
@@ -165,6 +184,9 @@ def load_campaign(path):
     out = p.string(top["out"][1], "out", allow_empty=False) if "out" in top else \
         os.path.join("campaigns", stem)
     c["out"] = os.path.normpath(os.path.join(base, out))
+    # Where `out` came from, for errors about the folder: the campaign file's line, or -o.
+    c["out_origin"] = (f"{path}:{top['out'][1].start_mark.line + 1}: key 'out'" if "out" in top
+                       else f"{path}: key 'out' (default)")
 
     run = {}
     if "run" in top:
@@ -832,6 +854,10 @@ def main(argv=None):
         print(f"campaign: {e}" if not str(e).startswith(args.campaign) else str(e),
               file=sys.stderr)
         return EXIT_ERROR
+    except OSError as e:  # a file or folder of the campaign that cannot be written (full disk)
+        where = e.filename if e.filename is not None else "campaign folder"
+        print(f"campaign: {where}: {e.strerror or e}", file=sys.stderr)
+        return EXIT_ERROR
 
 
 def check_new_campaign_folder(out):
@@ -868,8 +894,13 @@ def campaign(args):
                             f"there, {new.get(diff)!r} now): choose another -o or remove it")
     if not earlier:
         check_new_campaign_folder(out)
+    origin = "-o" if args.out else c["out_origin"]
     for sub in ("shards", "logs"):
-        os.makedirs(os.path.join(out, sub), exist_ok=True)
+        try:
+            os.makedirs(os.path.join(out, sub), exist_ok=True)
+        except OSError as e:
+            raise CampaignError(f"{origin}: cannot make the campaign folder {e.filename}: "
+                                f"{e.strerror}") from None
     shards = [Shard(c, i, fnmpc) for i in range(c["shards"])]
     todo = []
     for s in shards:

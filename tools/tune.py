@@ -46,10 +46,17 @@ class TuneError(Exception):
 
 def load_scenario(path):
     try:
-        with open(path) as f:
+        with open(path, encoding="utf-8") as f:
             doc = yaml.safe_load(f)
-    except (OSError, yaml.YAMLError) as e:
-        raise TuneError(f"{path}: {e}") from e
+    except OSError as e:
+        raise TuneError(f"{path}: cannot read: {e.strerror}") from None
+    except UnicodeDecodeError as e:
+        raise TuneError(f"{path}: key '(top level)': not valid UTF-8 (byte offset {e.start})") \
+            from None
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        raise TuneError(f"{path}:{mark.line + 1 if mark else 1}: key '(top level)': not valid "
+                        f"YAML: {getattr(e, 'problem', None) or e}") from None
     if not isinstance(doc, dict):
         raise TuneError(f"{path}: not a scenario (a YAML map expected)")
     base = os.path.dirname(os.path.abspath(path))
@@ -218,8 +225,15 @@ def main(argv=None):
         follower_weights(doc, path)
     storage = args.storage or "sqlite:///" + os.path.join(args.out, "tune.db")
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    study = optuna.create_study(study_name=args.study, storage=storage, direction="minimize",
-                                sampler=optuna.samplers.TPESampler(seed=1), load_if_exists=True)
+    try:
+        study = optuna.create_study(study_name=args.study, storage=storage,
+                                    direction="minimize",
+                                    sampler=optuna.samplers.TPESampler(seed=1),
+                                    load_if_exists=True)
+    except Exception as e:  # noqa: BLE001 -- SQLAlchemy's and Optuna's errors vary by URL
+        what = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise TuneError(f"{'--storage' if args.storage else '-o (its tune.db)'} {storage}: "
+                        f"cannot open the Optuna storage: {what}") from None
     if not study.trials:
         study.enqueue_trial({k: 1.0 for k in FACTORS})  # trial 0: the scenario's own weights
     ev = Evaluator(args)
@@ -347,6 +361,10 @@ if __name__ == "__main__":
         sys.exit(main())
     except TuneError as e:
         print(f"fnmpc tune: error: {e}", file=sys.stderr)
+        sys.exit(1)
+    except OSError as e:  # an output that cannot be written (full disk, no permission)
+        print(f"fnmpc tune: error: {e.filename if e.filename is not None else '-o'}: "
+              f"{e.strerror or e}", file=sys.stderr)
         sys.exit(1)
     except KeyboardInterrupt:
         print("fnmpc tune: stopped; rerun the same command to continue the study",

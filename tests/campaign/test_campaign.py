@@ -171,6 +171,37 @@ def test_a_folder_that_is_no_campaign_is_refused_and_kept(tmp_path):
     assert "Traceback" not in r.stderr
 
 
+def test_a_campaign_file_that_is_not_utf8_is_refused_with_file_line_and_key(tmp_path):
+    path = tmp_path / "latin1.yaml"
+    path.write_bytes(f"scenario: {TRIANGLE}\nruns: 2\nout: r\xe9sultats\n".encode("latin-1"))
+    for cmd in ([PY, DRIVER, str(path), "--fnmpc", FNMPC, "-q"],
+                [FNMPC, "campaign", str(path), "--script", DRIVER, "-q"]):
+        r = run(cmd)
+        assert r.returncode == 1, r.stderr
+        assert f"{path}:3: key 'out': not valid UTF-8 (byte 0xe9 at column 7)" in r.stderr, \
+            r.stderr
+        assert "Traceback" not in r.stderr
+    assert sorted(os.listdir(tmp_path)) == ["latin1.yaml"]
+
+
+def test_an_out_that_cannot_be_made_is_refused_naming_the_key(tmp_path):
+    # `out` under /proc (no folder can be made there) from the file, then from -o
+    path = write_campaign(str(tmp_path))
+    with open(path) as f:
+        text = f.read().replace("out: out\n", "out: /proc/fnmpc-forbidden\n")
+    with open(path, "w") as f:
+        f.write(text)
+    r = run(campaign_cmd(path, "local", "-q"))
+    assert r.returncode == 1, r.stderr
+    assert (f"{path}:5: key 'out': cannot make the campaign folder /proc/fnmpc-forbidden"
+            in r.stderr), r.stderr
+    assert "Traceback" not in r.stderr
+    r = run(campaign_cmd(path, "local", "-q", "-o", "/proc/fnmpc-forbidden-too"))
+    assert r.returncode == 1, r.stderr
+    assert "-o: cannot make the campaign folder /proc/fnmpc-forbidden-too" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr
+
+
 # ---------------------------------------------------------------------------------------------
 # local
 

@@ -105,6 +105,38 @@ def test_bad_input_is_refused_naming_it(tmp_path):
     assert r.returncode == 2  # CLI range: at least the defaults and one proposal
 
 
+def test_a_bad_storage_is_one_line_naming_the_flag(tmp_path):
+    for storage, what in (("bogus://", "Can't load plugin"),
+                          ("sqlite:////proc/fnmpc-forbidden/tune.db", "unable to open")):
+        out = tmp_path / storage.split(":")[0]
+        r = subprocess.run([FNMPC, "tune", TRIANGLE, "--held-out", HELD_OUT, "--trials", "2",
+                            "--storage", storage, "-o", str(out)],
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 1, r.stderr
+        assert (f"fnmpc tune: error: --storage {storage}: cannot open the Optuna storage: "
+                in r.stderr), r.stderr
+        assert what in r.stderr, r.stderr
+        assert "Traceback" not in r.stderr
+        assert not (out / "trials").exists()
+
+
+def test_a_scenario_that_is_not_utf8_is_refused_naming_file_and_line(tmp_path):
+    text = open(TRIANGLE, "rb").read().replace(b"name: triangle", b"name: tri\xe1ngulo", 1)
+    bad = tmp_path / "latin1.yaml"
+    bad.write_bytes(text)
+    r = subprocess.run([FNMPC, "tune", str(bad), "--held-out", HELD_OUT, "--trials", "2",
+                        "-o", str(tmp_path / "o")], capture_output=True, text=True)
+    assert r.returncode == 1, r.stderr
+    line = text[:text.index(b"\xe1")].count(b"\n") + 1
+    assert f"{bad}:{line}:" in r.stderr and "'name'" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr
+    # the driver itself, given such a file directly, says the same in one line
+    sys.path.insert(0, os.path.join(SOURCE, "tools"))
+    import tune as tool
+    with pytest.raises(tool.TuneError, match=f"{bad}: key '\\(top level\\)': not valid UTF-8"):
+        tool.load_scenario(str(bad))
+
+
 def test_scenarios_are_told_apart_by_path_not_file_name(tmp_path):
     # two scenarios of the same file name in different folders: two folder names, both flown
     sys.path.insert(0, os.path.join(SOURCE, "tools"))
