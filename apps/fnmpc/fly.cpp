@@ -59,7 +59,8 @@ class FlyLog {
     }
     std::fputs(
         "t,phase,session,sent,thrust_n,normalised_thrust,roll,pitch,yaw,nmpc,solver_time_s,"
-        "fallback,recovery,measurements\n",
+        "fallback,recovery,measurements,estimate_valid,health_flags,stale_kinds,imu_age_s,"
+        "mocap_age_s\n",
         csv_);
     events_.reserve(256);
   }
@@ -68,12 +69,18 @@ class FlyLog {
   }
   FlyLog(const FlyLog&) = delete;
   FlyLog& operator=(const FlyLog&) = delete;
-  void Row(double t, const formation::ControlOutput& c, const OnboardLink& link) {
-    std::fprintf(csv_, "%.3f,%s,%s,%d,%.4f,%.4f,%.5f,%.5f,%.5f,%d,%.6g,%d,%s,%ld\n", t,
-                 formation::ToString(c.phase).data(), link.session_state().c_str(),
-                 link.sent() ? 1 : 0, c.thrust, link.normalised_thrust(), c.roll, c.pitch, c.yaw,
-                 c.nmpc ? 1 : 0, c.solver_time, c.fallback ? 1 : 0,
-                 formation::ToString(c.recovery).data(), link.measurements());
+  void Row(double t, const formation::ControlOutput& c, OnboardLink& link) {
+    // The own-state estimator's health (docs/estimation.md "Health"): why an estimate is not
+    // usable can be read from the log.
+    const estimation::VehicleEstimate& own = link.controller().estimates().own;
+    const estimation::EstimateHealth& h = own.health;
+    std::fprintf(
+        csv_, "%.3f,%s,%s,%d,%.4f,%.4f,%.5f,%.5f,%.5f,%d,%.6g,%d,%s,%ld,%d,%u,%u,%.4g,%.4g\n", t,
+        formation::ToString(c.phase).data(), link.session_state().c_str(), link.sent() ? 1 : 0,
+        c.thrust, link.normalised_thrust(), c.roll, c.pitch, c.yaw, c.nmpc ? 1 : 0, c.solver_time,
+        c.fallback ? 1 : 0, formation::ToString(c.recovery).data(), link.measurements(),
+        own.valid ? 1 : 0, h.flags, h.stale_kinds, h.staleness[static_cast<int>(SensorKind::kImu)],
+        h.staleness[static_cast<int>(SensorKind::kMocapPose)]);
   }
   void Events(OnboardLink* link) {
     std::string line;
@@ -118,7 +125,7 @@ int Fly(const FlyArgs& a) {
   if (link.moved_takeoff()) {
     log.Say(
         fmt::format("take-off at {:.2f} s instead of the scenario's {:.2f} s: the autopilot "
-                    "handshake needs the warm-up and a second",
+                    "handshake needs handshake_time",
                     link.ready_time(), link.scenario_takeoff_time()));
   }
 

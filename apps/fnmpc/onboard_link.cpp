@@ -3,7 +3,9 @@
 
 #include <fmt/core.h>
 
+#include <cmath>
 #include <stdexcept>
+#include <string>
 
 #include "apps/fnmpc/onboard_vehicle.hpp"
 #include "fnmpc/autopilot/measurement_messages.hpp"
@@ -15,8 +17,12 @@
 namespace fnmpc::app {
 namespace {
 
-autopilot::SessionSettings SessionSettingsFor(const OnboardLinkOptions& o, int vehicle) {
+autopilot::SessionSettings SessionSettingsFor(const OnboardLinkOptions& o, int vehicle,
+                                              const formation::ControllerConfig& controller) {
   autopilot::SessionSettings s;
+  // Ask for the IMU at the rate the estimator is set up for (a settings file may say
+  // otherwise; 0: no request).
+  if (controller.sensors.imu.enabled) s.imu_rate = controller.sensors.imu.rate_hz;
   if (!o.settings_file.empty()) {
     config::YamlMap map = config::YamlMap::LoadFile(o.settings_file);
     config::SettingsReader reader(&map);
@@ -35,6 +41,17 @@ autopilot::SessionSettings SessionSettingsFor(const OnboardLinkOptions& o, int v
 formation::ControllerConfig WithReadyTakeoff(formation::ControllerConfig c, double ready) {
   if (c.takeoff_time < ready) c.takeoff_time = ready;
   return c;
+}
+
+nlohmann::json MeasurementRates(const OnboardVehicle& v) {
+  nlohmann::json rates = nlohmann::json::object();
+  for (int k = 0; k < kNumSensorKinds; ++k) {
+    const auto kind = static_cast<SensorKind>(k);
+    if (v.measurements(kind) == 0) continue;
+    const double r = v.measured_rate(kind);
+    rates[std::string(ToString(kind))] = std::isfinite(r) ? nlohmann::json(r) : nlohmann::json();
+  }
+  return rates;
 }
 
 }  // namespace
@@ -71,7 +88,7 @@ struct OnboardLink::Impl {
 
 OnboardLink::OnboardLink(formation::ControllerConfig controller, int vehicle,
                          const OnboardLinkOptions& options) {
-  const autopilot::SessionSettings s = SessionSettingsFor(options, vehicle);
+  const autopilot::SessionSettings s = SessionSettingsFor(options, vehicle, controller);
   impl_ = std::make_unique<Impl>(controller, vehicle, options, s);
 }
 
@@ -171,6 +188,11 @@ nlohmann::json OnboardLink::Summary() const {
           {"setpoints_sent", v.session().setpoints_sent()},
           {"setpoints_skipped", v.session().skipped_setpoints()},
           {"measurements", v.measurements()},
+          {"measurement_rates_hz", MeasurementRates(v)},
+          {"flight_steps", v.flight_steps()},
+          {"unusable_estimate_steps", v.unusable_estimate_steps()},
+          {"clock_rate", v.clock_map().rate()},
+          {"clock_resets", v.clock_map().resets()},
           {"ticks", v.ticks()},
           {"final_phase", formation::ToString(v.controller().phase())},
           {"failsafe", v.controller().failsafe()},

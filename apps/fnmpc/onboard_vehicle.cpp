@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "apps/fnmpc/onboard_vehicle.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -62,9 +63,13 @@ bool OnboardVehicle::OnFrame(const mavlink::Frame& frame, double now) {
   ++own_frames_;
   const double remote = StampOf(frame.message);
   double offset = 0.0;
-  if (clock_ == OnboardClock::kLocal) {
-    if (std::isfinite(remote)) offset_.Observe(remote, now);
-    offset = offset_.known() ? offset_.offset() : now - remote;
+  if (clock_ == OnboardClock::kLocal && std::isfinite(remote)) {
+    autopilot::ClockMap& map = frame.header.component_id == session_.settings().target_component
+                                   ? clock_map_
+                                   : bridge_clock_map_;
+    map.Observe(remote, now);
+    // Never stamped after its arrival (the fitted line may pass a little above a sample).
+    offset = std::min(map.ToLocal(remote), now) - remote;
   }
   if (clock_ == OnboardClock::kAutopilot &&
       std::holds_alternative<mavlink::AttitudeQuaternion>(frame.message)) {
@@ -77,8 +82,17 @@ bool OnboardVehicle::OnFrame(const mavlink::Frame& frame, double now) {
     if (m.kind == SensorKind::kBattery) voltage_ = m.voltage;
     controller_.Process(m);
     ++measurements_;
+    const int k = static_cast<int>(m.kind);
+    if (kind_count_[k]++ == 0) kind_first_[k] = now;
+    kind_last_[k] = now;
   }
   return false;
+}
+
+double OnboardVehicle::measured_rate(SensorKind kind) const {
+  const int k = static_cast<int>(kind);
+  if (kind_count_[k] < 2 || !(kind_last_[k] > kind_first_[k])) return kNaN;
+  return static_cast<double>(kind_count_[k] - 1) / (kind_last_[k] - kind_first_[k]);
 }
 
 void OnboardVehicle::Stop(double t) {
@@ -90,6 +104,10 @@ const OnboardStep& OnboardVehicle::Step(double t, autopilot::Outbox* out) {
   OnboardStep& s = last_;
   s.control = controller_.Control(t);
   const formation::ControlOutput& c = s.control;
+  if (c.phase != formation::FlightPhase::kIdle && c.phase != formation::FlightPhase::kLanded) {
+    ++flight_steps_;
+    if (!controller_.estimates().own.valid) ++unusable_steps_;
+  }
   // The take-off gate: the PID must not climb while the autopilot is not flying our
   // setpoints (it would wind up, and the vehicle jump when armed late). Once flown, leaving
   // the active state (disarming after the landing, a hand-back) is the session's business.

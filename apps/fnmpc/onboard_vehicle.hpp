@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string_view>
 
@@ -19,7 +20,8 @@ namespace fnmpc::app {
 
 /// How the onboard computer tells the time.
 enum class OnboardClock : int {
-  /// Its own steady clock; the autopilot's stamps are mapped onto it (ClockOffset). Flight.
+  /// Its own steady clock; the autopilot's stamps are mapped onto it (ClockMap: offset and
+  /// rate). Flight.
   kLocal = 0,
   /// The autopilot's: each ATTITUDE_QUATERNION's time_boot_ms is a control tick, stamps are
   /// taken as they are, and every tick is answered with one SET_ATTITUDE_TARGET stamped
@@ -75,12 +77,26 @@ class OnboardVehicle {
   [[nodiscard]] long ticks() const { return ticks_; }
   /// Frames received from our own system (the vehicle's autopilot).
   [[nodiscard]] long own_frames() const { return own_frames_; }
+  /// Measurements of `kind` received, and their mean arrival rate [Hz] (NaN before two).
+  [[nodiscard]] long measurements(SensorKind kind) const {
+    return kind_count_[static_cast<int>(kind)];
+  }
+  [[nodiscard]] double measured_rate(SensorKind kind) const;
+  /// Control steps in flight (take-off to landing, failsafe included) whose own-state
+  /// estimate was not valid (VehicleEstimate::valid: stale, uncertain, not initialised).
+  [[nodiscard]] long unusable_estimate_steps() const { return unusable_steps_; }
+  /// Control steps in flight.
+  [[nodiscard]] long flight_steps() const { return flight_steps_; }
+  /// The flight controller's clock mapping (kLocal): local seconds per autopilot second.
+  [[nodiscard]] const autopilot::ClockMap& clock_map() const { return clock_map_; }
 
  private:
   formation::VehicleController controller_;
   autopilot::AutopilotSession session_;
   OnboardClock clock_;
-  autopilot::ClockOffset offset_;
+  // One clock per source: the flight controller's, and a bridge's (motion capture, relative
+  // sensor: another component on the vehicle's system id, on a clock of its own).
+  autopilot::ClockMap clock_map_, bridge_clock_map_;
   std::uint8_t own_system_;
   double tick_time_ = kNaN;
   double voltage_ = kNaN;
@@ -88,6 +104,9 @@ class OnboardVehicle {
   bool was_active_ = false;  // the session has flown our setpoints (the take-off gate is past)
   OnboardStep last_;
   long measurements_ = 0, ticks_ = 0, own_frames_ = 0;
+  long unusable_steps_ = 0, flight_steps_ = 0;
+  std::array<long, kNumSensorKinds> kind_count_{};
+  std::array<double, kNumSensorKinds> kind_first_{}, kind_last_{};
 };
 
 }  // namespace fnmpc::app

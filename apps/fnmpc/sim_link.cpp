@@ -45,6 +45,8 @@ struct SimLinkArgs {
   std::string host = "127.0.0.1";
   int port = 14600;
   bool lockstep = false;
+  bool scenario_rates = false;
+  double clock_rate = 1.0;
   long long seed = -1;
   std::string out;
   std::string autopilot_settings;
@@ -205,12 +207,15 @@ int SimLink(const SimLinkArgs& a) {
   for (int step = 0; step <= steps && g_stop_signal == 0; ++step) {
     t = world.time();
     while (world.PopMeasurement(&m)) {
+      m.stamp *= a.clock_rate;  // the autopilot's clock
       if (m.vehicle < 0 || m.vehicle >= nv || !autopilot::ToMessage(m, &msg)) continue;
+      // The autopilot's own streams at its rates (decimated from the simulator's samples).
+      if (!a.scenario_rates && !v[m.vehicle].autopilot->Streams(m.kind, m.stamp)) continue;
       v[m.vehicle].conn->Send(msg);
       ++measurements_sent;
     }
     if (step % every == 0) {
-      tick_ms = static_cast<int>(std::lround(t * 1000.0));
+      tick_ms = static_cast<int>(std::lround(t * a.clock_rate * 1000.0));
       for (int i = 0; i < nv; ++i) {
         truth[i] = world.GetTrueState(i);
         positions[i] = truth[i].position;
@@ -393,6 +398,16 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
   sub->add_flag("--lockstep", a->lockstep,
                 "advance only when every `fnmpc fly --clock autopilot` answered the control "
                 "tick (default: real time)");
+  sub->add_flag("--scenario-rates", a->scenario_rates,
+                "send IMU, compass and battery at the scenario's sensor rates instead of the "
+                "emulated autopilot's stream rates (PX4: HIGHRES_IMU 50 Hz unless asked for "
+                "more with MAV_CMD_SET_MESSAGE_INTERVAL)");
+  sub->add_option("--clock-rate", a->clock_rate,
+                  "the autopilots' clocks run this many times the simulation's (their stamps; a "
+                  "lockstep PX4 runs about 2 % slow, crystals drift 50-100 ppm); real time only")
+      ->check(FiniteIn(0.5, 2.0))
+      ->excludes("--lockstep")
+      ->capture_default_str();
   sub->add_option("--autopilot-settings", a->autopilot_settings,
                   "YAML file of emulated-autopilot settings (docs/autopilot.md)")
       ->check(CLI::ExistingFile);

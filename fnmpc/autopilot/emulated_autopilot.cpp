@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "fnmpc/autopilot/emulated_autopilot.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <variant>
 
@@ -30,6 +31,8 @@ std::string_view ToString(EmulatorEvent event) {
       return "land_disarmed";
     case EmulatorEvent::kPilotMode:
       return "pilot_mode";
+    case EmulatorEvent::kStreamRate:
+      return "stream_rate";
   }
   return "?";
 }
@@ -37,6 +40,43 @@ std::string_view ToString(EmulatorEvent event) {
 EmulatedAutopilot::EmulatedAutopilot(const EmulatedAutopilotSettings& settings)
     : settings_(settings), land_detector_(settings.autopilot, settings.land_detector) {
   CheckLimits(settings_, "EmulatedAutopilotSettings");
+  const bool px4 = settings_.autopilot == AutopilotKind::kPx4;
+  const auto rate = [](double set, double default_rate) { return set < 0.0 ? default_rate : set; };
+  stream_rate_.fill(kInf);
+  stream_rate_[static_cast<int>(SensorKind::kImu)] = rate(settings_.highres_imu_rate, px4 ? 50 : 0);
+  stream_rate_[static_cast<int>(SensorKind::kCompass)] =
+      rate(settings_.attitude_rate, px4 ? 100 : 50);
+  stream_rate_[static_cast<int>(SensorKind::kBattery)] =
+      rate(settings_.sys_status_rate, px4 ? 5 : 2);
+  stream_next_.fill(-kInf);
+}
+
+namespace {
+// The SensorKind a stream message carries (MAVLink id), or -1.
+int KindOfMessage(float message_id) {
+  if (message_id == 105.0F) return static_cast<int>(SensorKind::kImu);     // HIGHRES_IMU
+  if (message_id == 30.0F) return static_cast<int>(SensorKind::kCompass);  // ATTITUDE
+  if (message_id == 1.0F) return static_cast<int>(SensorKind::kBattery);   // SYS_STATUS
+  return -1;
+}
+}  // namespace
+
+bool EmulatedAutopilot::Streams(SensorKind kind, double stamp) {
+  const int k = static_cast<int>(kind);
+  const double rate = stream_rate_[k];
+  if (std::isinf(rate)) return true;
+  if (!(rate > 0.0)) return false;
+  if (stamp < stream_next_[k] - 1e-6) return false;
+  const double period = 1.0 / rate;
+  // The next sample due one period after this one's slot (catching up after a gap).
+  stream_next_[k] = std::isinf(stream_next_[k])
+                        ? stamp + period
+                        : std::max(stream_next_[k] + period, stamp + 0.5 * period);
+  return true;
+}
+
+double EmulatedAutopilot::StreamRate(SensorKind kind) const {
+  return stream_rate_[static_cast<int>(kind)];
 }
 
 void EmulatedAutopilot::Disarmed(double now, EmulatorEvent why) {
@@ -137,6 +177,28 @@ void EmulatedAutopilot::OnFrame(const mavlink::Frame& frame, double now, Outbox*
       Note(EmulatorEvent::kArmRejected, now);
     }
     Ack(frame, cmd->command, ok ? mav::kResultAccepted : mav::kResultDenied, out);
+    return;
+  }
+  if (cmd->command == mav::kCmdSetMessageInterval) {
+    // param1: message id; param2: interval [us], -1 stop, 0 the default. Both autopilots
+    // answer it (PX4 mavlink_receiver, ArduPilot GCS_MAVLINK::handle_command_set_message_interval).
+    const int k = KindOfMessage(cmd->param1);
+    if (k < 0) {
+      Ack(frame, cmd->command, mav::kResultDenied, out);
+      return;
+    }
+    const float interval = cmd->param2;
+    if (interval < 0.0F) {
+      stream_rate_[k] = 0.0;
+    } else if (interval == 0.0F) {
+      const EmulatedAutopilot defaults(settings_);
+      stream_rate_[k] = defaults.stream_rate_[k];
+    } else {
+      stream_rate_[k] = 1e6 / static_cast<double>(interval);
+    }
+    stream_next_[k] = -kInf;
+    Note(EmulatorEvent::kStreamRate, now);
+    Ack(frame, cmd->command, mav::kResultAccepted, out);
     return;
   }
   Note(EmulatorEvent::kUnknownCommand, now);

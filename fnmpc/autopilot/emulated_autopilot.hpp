@@ -1,12 +1,14 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
+#include <array>
 #include <cstdint>
 
 #include "fnmpc/autopilot/land_detector.hpp"
 #include "fnmpc/autopilot/modes.hpp"
 #include "fnmpc/autopilot/outbox.hpp"
 #include "fnmpc/autopilot/setpoint.hpp"
+#include "fnmpc/core/sensors.hpp"
 #include "fnmpc/core/serialize.hpp"
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/mavlink/parser.hpp"
@@ -36,6 +38,15 @@ struct EmulatedAutopilotSettings {
   int guid_options = 8;
   /// The land detector that decides whether a disarm by command is accepted.
   LandDetectorSettings land_detector;
+  /// Rates of the autopilot's own streams the estimators use [Hz] until an onboard computer
+  /// changes them with MAV_CMD_SET_MESSAGE_INTERVAL; -1: the autopilot's default
+  /// (PX4's onboard mode, src/modules/mavlink/mavlink_main.cpp: HIGHRES_IMU 50, ATTITUDE 100,
+  /// SYS_STATUS 5; ArduPilot: HIGHRES_IMU not streamed, ATTITUDE at SR2_EXTRA1 and SYS_STATUS
+  /// at SR2_EXT_STAT as docs/autopilot.md sets them, 50 and 2). 0: not streamed. The
+  /// simulator's sensor rate caps every stream.
+  double highres_imu_rate = -1.0;
+  double attitude_rate = -1.0;
+  double sys_status_rate = -1.0;
 
   template <class Archive>
   void Serialize(Archive* a) {
@@ -48,6 +59,12 @@ struct EmulatedAutopilotSettings {
              "[Hz] PX4: the stream's minimum rate");
     a->Visit("guid_options", &guid_options, IntIn(0, 65535), "ArduPilot GUID_OPTIONS");
     a->Nested("land_detector", &land_detector);
+    a->Visit("highres_imu_rate", &highres_imu_rate, Finite().AtMost(1000.0, "Hz"),
+             "[Hz] HIGHRES_IMU stream (-1: the autopilot's default, 0: none)");
+    a->Visit("attitude_rate", &attitude_rate, Finite().AtMost(1000.0, "Hz"),
+             "[Hz] ATTITUDE stream (-1: the autopilot's default, 0: none)");
+    a->Visit("sys_status_rate", &sys_status_rate, Finite().AtMost(1000.0, "Hz"),
+             "[Hz] SYS_STATUS stream (-1: the autopilot's default, 0: none)");
   }
 };
 
@@ -64,6 +81,7 @@ enum class EmulatorEvent : int {
   kDisarmRefused = 8,   ///< disarm by command refused: the land detector has not confirmed
   kLandDisarmed = 9,    ///< PX4: disarmed by itself COM_DISARM_LAND after landed
   kPilotMode = 10,      ///< the pilot selected a mode (SelectMode)
+  kStreamRate = 11,     ///< a stream's rate set by MAV_CMD_SET_MESSAGE_INTERVAL
 };
 std::string_view ToString(EmulatorEvent event);
 
@@ -79,6 +97,14 @@ class EmulatedAutopilot {
   void Step(double now, Outbox* out, const LandDetectorInput& motion = {});
   /// The pilot (or a ground station) selects `mode` by its own means (RC switch): no ACK.
   void SelectMode(FlightMode mode, double now);
+  /// Whether a measurement of `kind` stamped `stamp` goes out: the autopilot's own streams
+  /// (kImu as HIGHRES_IMU, kCompass as ATTITUDE, kBattery as SYS_STATUS) at their current
+  /// rates, decimated from the simulator's samples; every other kind (motion capture, flow,
+  /// relative: a bridge's, not the autopilot's) always.
+  bool Streams(SensorKind kind, double stamp);
+  /// The current rate of the stream carrying `kind` [Hz] (0: not streamed; kInf: not one of
+  /// the autopilot's streams).
+  [[nodiscard]] double StreamRate(SensorKind kind) const;
   /// The setpoint it flies at `now`: the last one received while armed in OFFBOARD /
   /// GUIDED_NOGPS and not lost; invalid otherwise (disarmed, other mode, failsafe).
   [[nodiscard]] AttitudeSetpoint Flying(double now) const;
@@ -109,6 +135,9 @@ class EmulatedAutopilot {
   double stream_start_ = kNaN;   // start of the current setpoint stream [s]
   double last_heartbeat_ = kNaN;
   LandDetector land_detector_;
+  // Per SensorKind: the stream's rate [Hz] and the next stamp due.
+  std::array<double, kNumSensorKinds> stream_rate_{};
+  std::array<double, kNumSensorKinds> stream_next_{};
   EmulatorEvent event_ = EmulatorEvent::kNone;
   double event_time_ = kNaN;
 };

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "fnmpc/autopilot/measurement_messages.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <variant>
@@ -187,16 +188,65 @@ bool FromMessage(const mavlink::Message& message, int vehicle, double time_offse
   return true;
 }
 
-void ClockOffset::Observe(double remote, double local) {
+void ClockMap::Observe(double remote, double local) {
   if (!std::isfinite(remote) || !std::isfinite(local)) return;
-  const double d = local - remote;
-  if (known_ && remote < last_remote_ - reset_after_) {
-    known_ = false;
+  if (count_ > 0 && remote < last_remote_ - reset_after_) {
+    count_ = 0;  // the remote clock restarted
     ++resets_;
   }
-  if (!known_ || d < offset_) offset_ = d;
-  known_ = true;
   last_remote_ = remote;
+  if (count_ == 0) {
+    samples_[0] = {remote, local};
+    count_ = 1;
+    bucket_start_ = remote;
+    rate_ = 1.0;
+    Fit();
+    return;
+  }
+  Sample& open = samples_[count_ - 1];
+  if (remote - bucket_start_ >= bucket_) {
+    // Close the open bucket (the oldest closed one goes when all are in use) and open one.
+    if (count_ == kBuckets + 1) {
+      std::copy(samples_.begin() + 1, samples_.end(), samples_.begin());
+      --count_;
+    }
+    samples_[count_++] = {remote, local};
+    bucket_start_ = remote;
+  } else if (local - rate_ * remote < open.local - rate_ * open.remote) {
+    open = {remote, local};  // less delayed than the bucket's best so far
+  } else {
+    return;
+  }
+  Fit();
+}
+
+void ClockMap::Fit() {
+  // Rate: least-squares slope through the buckets' minima once two buckets are closed.
+  double rate = 1.0;
+  if (count_ >= 3) {
+    double mr = 0.0, ml = 0.0;
+    for (int i = 0; i < count_; ++i) {
+      mr += samples_[i].remote;
+      ml += samples_[i].local;
+    }
+    mr /= count_;
+    ml /= count_;
+    double srr = 0.0, srl = 0.0;
+    for (int i = 0; i < count_; ++i) {
+      srr += (samples_[i].remote - mr) * (samples_[i].remote - mr);
+      srl += (samples_[i].remote - mr) * (samples_[i].local - ml);
+    }
+    const double fitted = srr > 0.0 ? srl / srr : 1.0;
+    if (fitted >= 0.5 && fitted <= 2.0) rate = fitted;
+  }
+  rate_ = rate;
+  // Offset: the line with that slope under every minimum (the least delay).
+  remote0_ = samples_[count_ - 1].remote;
+  double lowest = kInf;
+  for (int i = 0; i < count_; ++i) {
+    lowest = std::min(lowest, samples_[i].local - rate_ * (samples_[i].remote - remote0_));
+  }
+  local0_ = lowest;
 }
 
 }  // namespace fnmpc::autopilot

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
+#include <array>
 #include <cstdint>
 
 #include "fnmpc/core/sensors.hpp"
@@ -35,23 +36,43 @@ bool ToMessage(const Measurement& m, mavlink::Message* out);
 bool FromMessage(const mavlink::Message& message, int vehicle, double time_offset, double now,
                  Measurement* out);
 
-/// The remote sender's clock mapped onto ours from stamped messages: the offset is the
-/// smallest (local - remote) seen, i.e. remote time + offset is the stamp shifted by the
-/// smallest transport delay seen. Remote time going back by more than `reset_after` [s]
-/// (the autopilot rebooted) starts over.
-class ClockOffset {
+/// The remote sender's clock mapped onto ours, with an offset and a rate: local = offset +
+/// rate * remote, fitted to the lower envelope of (remote, local) pairs, i.e. to the stamps
+/// shifted by the smallest transport delay. The samples are grouped in buckets of `bucket`
+/// seconds of remote time; each bucket keeps its least-delayed sample, the rate is the least-
+/// squares slope through the last kBuckets of those (once they span 2 buckets), and the
+/// offset puts the line under every one of them. An autopilot clock running 0.9-1.1 times
+/// the wall clock (a lockstep simulation, a crystal's ppm) is then followed, where an offset
+/// alone would make its stamps ever older or newer. Until two buckets are full the rate is 1
+/// and the offset the smallest (local - remote) seen. Remote time going back by more than
+/// `reset_after` [s] (the autopilot rebooted) starts over; a fitted rate outside [0.5, 2] is
+/// not believed (rate 1). No allocation.
+class ClockMap {
  public:
-  explicit ClockOffset(double reset_after = 1.0) : reset_after_(reset_after) {}
+  static constexpr int kBuckets = 16;
+  explicit ClockMap(double reset_after = 1.0, double bucket = 2.0)
+      : reset_after_(reset_after), bucket_(bucket) {}
   void Observe(double remote, double local);
-  [[nodiscard]] bool known() const { return known_; }
-  [[nodiscard]] double offset() const { return offset_; }
+  [[nodiscard]] bool known() const { return count_ > 0; }
+  /// The local time of remote time `remote` (known() only).
+  [[nodiscard]] double ToLocal(double remote) const {
+    return local0_ + rate_ * (remote - remote0_);
+  }
+  [[nodiscard]] double rate() const { return rate_; }
   [[nodiscard]] long resets() const { return resets_; }
 
  private:
-  double reset_after_;
-  bool known_ = false;
-  double offset_ = 0.0;
+  struct Sample {
+    double remote = 0.0, local = 0.0;
+  };
+  void Fit();
+
+  double reset_after_, bucket_;
+  std::array<Sample, kBuckets + 1> samples_{};  // closed buckets' minima, then the open one
+  int count_ = 0;                               // samples_ in use (the open bucket last)
+  double bucket_start_ = 0.0;                   // remote time the open bucket began
   double last_remote_ = 0.0;
+  double rate_ = 1.0, remote0_ = 0.0, local0_ = 0.0;
   long resets_ = 0;
 };
 

@@ -44,6 +44,7 @@ FlightMode ModeOf(AutopilotKind kind, const SetModeParams& params);
 namespace mav {
 inline constexpr std::uint16_t kCmdDoSetMode = 176;            // MAV_CMD_DO_SET_MODE
 inline constexpr std::uint16_t kCmdComponentArmDisarm = 400;   // MAV_CMD_COMPONENT_ARM_DISARM
+inline constexpr std::uint16_t kCmdSetMessageInterval = 511;   // MAV_CMD_SET_MESSAGE_INTERVAL
 inline constexpr std::uint8_t kResultAccepted = 0;             // MAV_RESULT_ACCEPTED
 inline constexpr std::uint8_t kResultTemporarilyRejected = 1;  // MAV_RESULT_TEMPORARILY_REJECTED
 inline constexpr std::uint8_t kResultDenied = 2;               // MAV_RESULT_DENIED

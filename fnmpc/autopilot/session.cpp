@@ -64,6 +64,8 @@ std::string_view ToString(SessionReason reason) {
       return "requested";
     case SessionReason::kDisarmRefused:
       return "disarm_refused";
+    case SessionReason::kStreamRequest:
+      return "stream_request";
   }
   return "?";
 }
@@ -86,8 +88,13 @@ void AutopilotSession::Enter(double now, SessionState state, SessionReason reaso
   state_ = state;
   reason_ = reason;
   pending_.active = false;
+  LogEvent(now, reason, command, result);
+}
+
+void AutopilotSession::LogEvent(double now, SessionReason reason, std::uint16_t command,
+                                int result) {
   SessionEvent& e = events_[(event_head_ + event_count_) % events_.size()];
-  e = SessionEvent{now, state, reason, command, result};
+  e = SessionEvent{now, state_, reason, command, result};
   if (event_count_ < events_.size()) {
     ++event_count_;
   } else {
@@ -221,7 +228,12 @@ void AutopilotSession::Handshake(double now, Outbox* out) {
   if (pending_.active && ack_received_) {
     ack_received_ = false;
     const std::uint8_t r = last_ack_result_;
-    if (state_ == SessionState::kDisarming) {
+    if (state_ == SessionState::kWarmingUp) {
+      // The stream request's answer, whatever it is: logged, the warm-up goes on.
+      stream_requested_ = true;
+      pending_.active = false;
+      LogEvent(now, SessionReason::kStreamRequest, cmd, r);
+    } else if (state_ == SessionState::kDisarming) {
       // Refused while the land detector has not confirmed (PX4 TEMPORARILY_REJECTED,
       // ArduPilot FAILED), or accepted: resent at the next timeout until a HEARTBEAT shows
       // the vehicle disarmed or disarm_timeout passes.
@@ -265,6 +277,19 @@ void AutopilotSession::Handshake(double now, Outbox* out) {
   float p1 = 0.0F, p2 = 0.0F, p3 = 0.0F;
   switch (state_) {
     case SessionState::kWarmingUp:
+      if (heard_ && settings_.imu_rate > 0.0 && !stream_requested_) {
+        want = mav::kCmdSetMessageInterval;
+        if (pending_.active && pending_.command.command == want &&
+            pending_.sends >= settings_.command_attempts &&
+            now - pending_.sent >= ResendAfter() - 1e-9) {
+          stream_requested_ = true;  // no answer: the estimators run on what arrives
+          pending_.active = false;
+          LogEvent(now, SessionReason::kStreamRequest, want, -1);
+        } else if (!pending_.active || now - pending_.sent >= ResendAfter() - 1e-9) {
+          // param1 HIGHRES_IMU (105), param2 the interval [us]
+          SendCommand(now, want, 105.0F, static_cast<float>(1e6 / settings_.imu_rate), 0.0F, out);
+        }
+      }
       if (heard_ && now - warmup_start_ >= settings_.warmup - 1e-9) {
         Enter(now, SessionState::kRequestingMode, SessionReason::kNone);
         seen_active_mode_ = mode_ == FlightMode::kOffboard;

@@ -51,6 +51,11 @@ struct SessionSettings {
   /// first HEARTBEAT, the mode request and arming with their ACKs and the HEARTBEATs that
   /// confirm them (1 Hz), with resends [s]. `fly` needs the take-off at least this late.
   double handshake_time = 5.0;
+  /// HIGHRES_IMU rate asked of the autopilot with MAV_CMD_SET_MESSAGE_INTERVAL during the
+  /// warm-up [Hz] (the estimator's IMU rate); 0: no request (the autopilot's own rate: PX4's
+  /// onboard mode 50 Hz, ArduPilot none). A refusal is logged, not fatal: the estimators run
+  /// on what arrives.
+  double imu_rate = 0.0;
 
   template <class Archive>
   void Serialize(Archive* a) {
@@ -75,6 +80,8 @@ struct SessionSettings {
     a->Visit("arm", &arm, AnyValue(), "arm by command; false: wait for the pilot to arm");
     a->Visit("disarm_timeout", &disarm_timeout, Positive().AtMost(120.0, "s"),
              "[s] after landing: keep asking to disarm (idle, level) this long");
+    a->Visit("imu_rate", &imu_rate, NonNegative().AtMost(1000.0, "Hz"),
+             "[Hz] HIGHRES_IMU rate requested during the warm-up (0: no request)");
     a->Visit("handshake_time", &handshake_time, Positive().AtMost(60.0, "s"),
              "[s] allowance from the first autopilot frame to active (take-off no earlier)");
   }
@@ -107,6 +114,7 @@ enum class SessionReason : int {
   kWrongAutopilot = 7,       ///< the HEARTBEAT names another autopilot than configured
   kRequested = 8,            ///< HandBack() by the caller
   kDisarmRefused = 9,        ///< landed, but the autopilot refused to disarm for disarm_timeout
+  kStreamRequest = 10,       ///< the stream request was answered (event only; result inside)
 };
 std::string_view ToString(SessionReason reason);
 
@@ -168,6 +176,8 @@ class AutopilotSession {
   };
   void Enter(double now, SessionState state, SessionReason reason, std::uint16_t command = 0,
              int result = -1);
+  // Appends an event without a state change (the current state).
+  void LogEvent(double now, SessionReason reason, std::uint16_t command, int result);
   void SendCommand(double now, std::uint16_t command, float p1, float p2, float p3, Outbox* out);
   void OnAck(const mavlink::CommandAck& ack, double now);
   void Watchdogs(double now);
@@ -188,6 +198,7 @@ class AutopilotSession {
   bool contradicted_ = false;  // a HEARTBEAT after an accepted command did not show it
   double disarm_start_ = kNaN;
   double last_yaw_ = kNaN;          // of the last setpoint sent: held while disarming
+  bool stream_requested_ = false;   // the IMU stream request was answered or given up
   SessionEvent last_event_of_ack_;  // the accepted ACK, logged with the confirmed state
   bool has_ack_event_ = false;
   FlightMode mode_ = FlightMode::kOther;

@@ -79,7 +79,14 @@ for v in vehicles:
     # Disarmed by the emulated autopilot's rules (land detector), not left armed
     assert link["vehicles"][v]["armed_at_end"] is False, (v, link["vehicles"][v])
     assert fly["failsafe"] is False and fly["fallbacks"] == 0, fly
-    states = [e["state"] for e in fly["events"]]
+    # The IMU stream was asked for at the estimator's rate (MAV_CMD_SET_MESSAGE_INTERVAL)
+    # and granted; the estimator never lost its estimate in flight.
+    requests = [e for e in fly["events"] if e["reason"] == "stream_request"]
+    assert requests and requests[0]["result"] == 0, (v, fly["events"])
+    assert fly["unusable_estimate_steps"] == 0, (v, fly["unusable_estimate_steps"])
+    imu_rate = fly["measurement_rates_hz"]["imu"]
+    assert 0.9 * 250 <= imu_rate <= 1.1 * 250, (v, fly["measurement_rates_hz"])
+    states = [e["state"] for e in fly["events"] if e["reason"] != "stream_request"]
     assert states[:4] == ["warming_up", "requesting_mode", "arming", "active"], states
     assert states[-1] == "disarmed", states
 a = inproc["mean_formation_error_m"]

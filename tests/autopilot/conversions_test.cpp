@@ -2,6 +2,8 @@
 // Setpoints and measurements through their MAVLink messages, both ways.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <numbers>
 #include <random>
@@ -162,16 +164,53 @@ TEST(MeasurementMessagesTest, WhatTheLinkDoesNotCarryIsRefused) {
   EXPECT_FALSE(FromMessage(imu, 0, 0.0, 0.0, &out));
 }
 
-TEST(ClockOffsetTest, SmallestDelayWinsAndARebootStartsOver) {
-  ClockOffset c;
+TEST(ClockMapTest, SmallestDelayWinsAndARebootStartsOver) {
+  ClockMap c;
   EXPECT_FALSE(c.known());
   c.Observe(10.0, 110.02);
   c.Observe(10.1, 110.105);
   c.Observe(10.2, 110.23);
-  EXPECT_NEAR(c.offset(), 100.005, 1e-9);
+  EXPECT_NEAR(c.ToLocal(10.2) - 10.2, 100.005, 1e-9);
+  EXPECT_EQ(c.rate(), 1.0);
   c.Observe(0.5, 111.0);  // remote clock restarted
   EXPECT_EQ(c.resets(), 1);
-  EXPECT_NEAR(c.offset(), 110.5, 1e-9);
+  EXPECT_NEAR(c.ToLocal(0.5), 111.0, 1e-9);
+}
+
+/// An autopilot clock at `rate` times the wall clock, stamps arriving after 1-20 ms of
+/// random delay at 100 Hz for `duration` s: the largest error of the mapping in the last
+/// minute, against the stamp's true local time plus the smallest possible delay (1 ms).
+double MappingError(double rate, double duration, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> delay(0.001, 0.020);
+  ClockMap c;
+  double worst = 0.0;
+  for (double local_sent = 0.0; local_sent < duration; local_sent += 0.01) {
+    const double remote = 3.0 + rate * local_sent;  // the autopilot booted 3 s earlier
+    c.Observe(remote, 50.0 + local_sent + delay(rng));
+    if (local_sent > duration - 60.0) {
+      worst = std::max(worst, std::abs(c.ToLocal(remote) - (50.0 + local_sent + 0.001)));
+    }
+  }
+  return worst;
+}
+
+TEST(ClockMapTest, AutopilotClocksAtPointNineToOnePointOneTimesTheWallClockAreFollowed) {
+  for (const double rate : {0.9, 0.95, 0.98, 1.0, 1.0001, 1.05, 1.1}) {
+    // Over ten minutes the mapped stamp stays within 2 ms of the least-delayed arrival (an
+    // offset alone would be off by |1 - rate| * 600 s: 12 s at 0.98).
+    EXPECT_LT(MappingError(rate, 600.0, 7), 0.002) << "rate " << rate;
+  }
+}
+
+TEST(ClockMapTest, ARebootedAutopilotAtAnotherRateIsFollowedAgain) {
+  ClockMap c;
+  for (double t = 0.0; t < 60.0; t += 0.01) c.Observe(100.0 + 0.95 * t, t + 0.002);
+  EXPECT_NEAR(c.rate(), 1.0 / 0.95, 1e-3);
+  for (double t = 60.0; t < 120.0; t += 0.01) c.Observe(1.05 * (t - 60.0), t + 0.002);
+  EXPECT_EQ(c.resets(), 1);
+  EXPECT_NEAR(c.rate(), 1.0 / 1.05, 1e-3);
+  EXPECT_NEAR(c.ToLocal(1.05 * 59.0), 119.0 + 0.002, 1e-3);
 }
 
 }  // namespace

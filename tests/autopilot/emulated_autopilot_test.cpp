@@ -105,6 +105,37 @@ TEST(EmulatedAutopilotTest, DisarmIsRefusedUntilTheLandDetectorConfirmsOrWhenFor
   EXPECT_FALSE(f.ap.armed());
 }
 
+TEST(EmulatedAutopilotTest, StreamsAtTheAutopilotsRatesUntilSetMessageIntervalChangesThem) {
+  // Given PX4's onboard-mode defaults and the simulator's IMU at 250 Hz for 2 s
+  Driver d{EmulatedAutopilotSettings{}};
+  const auto count = [&](SensorKind kind, double rate, double from) {
+    int n = 0;
+    for (int i = 0; i < static_cast<int>(2.0 * rate); ++i) {
+      n += d.ap.Streams(kind, from + i / rate) ? 1 : 0;
+    }
+    return n;
+  };
+  // Then HIGHRES_IMU goes at 50 Hz, SYS_STATUS at 5 Hz, motion capture untouched
+  EXPECT_EQ(count(SensorKind::kImu, 250.0, 0.0), 100);
+  EXPECT_EQ(count(SensorKind::kBattery, 10.0, 0.0), 10);
+  EXPECT_EQ(count(SensorKind::kMocapPose, 60.0, 0.0), 120);
+  // When the onboard computer asks for HIGHRES_IMU every 4000 us (250 Hz), it is accepted
+  EXPECT_EQ(d.Command(2.0, mav::kCmdSetMessageInterval, 105.0F, 4000.0F), mav::kResultAccepted);
+  EXPECT_EQ(count(SensorKind::kImu, 250.0, 2.0), 500);
+  // A message it does not stream is refused; -1 stops a stream; 0 restores the default
+  EXPECT_EQ(d.Command(4.0, mav::kCmdSetMessageInterval, 24.0F, 1000.0F), mav::kResultDenied);
+  EXPECT_EQ(d.Command(4.0, mav::kCmdSetMessageInterval, 105.0F, -1.0F), mav::kResultAccepted);
+  EXPECT_EQ(count(SensorKind::kImu, 250.0, 4.0), 0);
+  EXPECT_EQ(d.Command(6.0, mav::kCmdSetMessageInterval, 105.0F, 0.0F), mav::kResultAccepted);
+  EXPECT_EQ(count(SensorKind::kImu, 250.0, 6.0), 100);
+  // ArduPilot streams no HIGHRES_IMU until asked
+  EmulatedAutopilotSettings ardu;
+  ardu.autopilot = AutopilotKind::kArduPilot;
+  Driver a{ardu};
+  EXPECT_FALSE(a.ap.Streams(SensorKind::kImu, 0.0));
+  EXPECT_EQ(a.ap.StreamRate(SensorKind::kImu), 0.0);
+}
+
 TEST(EmulatedAutopilotTest, SetpointLossLandsAndRefusesOffboardAfterwards) {
   Driver d{EmulatedAutopilotSettings{}};
   for (double t = 0.0; t <= 1.1 + 1e-9; t += 0.05) d.Setpoint(t);

@@ -338,6 +338,35 @@ TEST(SessionTest, OneLostCommandIsResentAndTheHandshakeStillCompletesInTime) {
   EXPECT_LE(link.t, link.session.settings().handshake_time);
 }
 
+TEST(SessionTest, TheImuStreamIsRequestedDuringTheWarmUpAndARefusalIsNotFatal) {
+  // Given a session that wants the IMU at 250 Hz, against PX4 (grants it) and an ArduPilot
+  // emulation that refuses (here: an autopilot answering DENIED to every stream request)
+  SessionSettings s = Px4();
+  s.imu_rate = 250.0;
+  LinkPair link(s, EmulatedPx4());
+  ASSERT_TRUE(link.RunUntil(6.0, Hover(), [&] { return link.session.active(); }));
+  EXPECT_EQ(link.autopilot.StreamRate(SensorKind::kImu), 250.0);
+  bool answered = false;
+  SessionEvent e;
+  while (link.session.PopEvent(&e)) {
+    if (e.reason == SessionReason::kStreamRequest) {
+      answered = true;
+      EXPECT_EQ(e.command, mav::kCmdSetMessageInterval);
+      EXPECT_EQ(e.result, mav::kResultAccepted);
+      EXPECT_EQ(e.state, SessionState::kWarmingUp);
+    }
+  }
+  EXPECT_TRUE(answered);
+  // An autopilot that never answers the request: the handshake goes on after the warm-up
+  SessionSettings q = Px4();
+  q.imu_rate = 250.0;
+  LinkPair silent(q, EmulatedPx4());
+  silent.drop_commands = 1000;  // every command lost...
+  silent.RunUntil(1.6, Hover(), [] { return false; });
+  silent.drop_commands = 0;  // ...until the warm-up ends
+  ASSERT_TRUE(silent.RunUntil(8.0, Hover(), [&] { return silent.session.active(); }));
+}
+
 TEST(SessionTest, InvalidSettingsNameTheField) {
   SessionSettings s;
   s.state_timeout = -1.0;
