@@ -50,6 +50,14 @@ bool Stage::Passed() const {
   return true;
 }
 
+std::string Stage::FailedChecks() const {
+  std::string which;
+  for (const auto& c : checks) {
+    if (!c["pass"].get<bool>()) which += (which.empty() ? "" : ", ") + c["name"].get<std::string>();
+  }
+  return which;
+}
+
 nlohmann::json Stage::Json() const {
   return {{"name", name},
           {"ok", ok},
@@ -115,16 +123,9 @@ void PrintStages(const std::vector<Stage>& stages) {
       fmt::print("  stage {:<15} FAILED: {}\n", s.name, s.reason);
       continue;
     }
-    int failed = 0;
-    std::string which;
-    for (const auto& c : s.checks) {
-      if (!c["pass"].get<bool>()) {
-        ++failed;
-        which += (which.empty() ? "" : ", ") + c["name"].get<std::string>();
-      }
-    }
-    fmt::print("  stage {:<15} ok, sanity {}{}\n", s.name, failed == 0 ? "PASS" : "FAIL",
-               failed == 0 ? "" : " (" + which + ")");
+    const std::string which = s.FailedChecks();
+    fmt::print("  stage {:<15} ok, sanity {}{}\n", s.name, which.empty() ? "PASS" : "FAIL",
+               which.empty() ? "" : " (" + which + ")");
   }
 }
 

@@ -32,6 +32,8 @@ struct Stage {
   void CheckTrue(const std::string& check, bool pass, const std::string& detail);
   /// Every sanity check passed (and the stage ran).
   [[nodiscard]] bool Passed() const;
+  /// Names of the failed sanity checks, comma-separated (empty: none failed).
+  [[nodiscard]] std::string FailedChecks() const;
   [[nodiscard]] nlohmann::json Json() const;
 };
 

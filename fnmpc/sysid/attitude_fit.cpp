@@ -95,14 +95,24 @@ template void SimulateAttitudeLoop<double>(const std::vector<double>&, const std
 
 namespace {
 
+bool Used(const SampleMask& use, std::size_t i) { return use.empty() || use[i] != 0; }
+
+std::size_t CountUsed(const SampleMask& use, std::size_t n) {
+  if (use.empty()) return n;
+  return static_cast<std::size_t>(std::count_if(use.begin(), use.end(), [](auto u) { return u; }));
+}
+
 void CheckLog(const char* who, const std::vector<double>& t, const std::vector<double>& ref,
-              const std::vector<double>& angle) {
-  if (ref.size() != t.size() || angle.size() != t.size()) {
-    throw std::invalid_argument(std::string("[") + who + "] t, ref and angle differ in length");
+              const std::vector<double>& angle, const SampleMask& use = {}) {
+  if (ref.size() != t.size() || angle.size() != t.size() ||
+      (!use.empty() && use.size() != t.size())) {
+    throw std::invalid_argument(std::string("[") + who +
+                                "] t, ref, angle (and the sample mask) differ in length");
   }
-  if (t.size() < 20) {
+  const std::size_t n_used = CountUsed(use, t.size());
+  if (n_used < 20) {
     throw std::invalid_argument(std::string("[") + who + "] need at least 20 samples, got " +
-                                std::to_string(t.size()));
+                                std::to_string(n_used));
   }
   double lo = ref[0], hi = ref[0];
   for (double r : ref) {
@@ -139,26 +149,38 @@ struct LoopSim {
   }
 };
 
-double SumSquares(const std::vector<double>& y, const std::vector<double>& m) {
+double SumSquares(const std::vector<double>& y, const std::vector<double>& m,
+                  const SampleMask& use = {}) {
   double ss = 0.0;
-  for (std::size_t i = 0; i < m.size(); ++i) ss += (y[i] - m[i]) * (y[i] - m[i]);
+  for (std::size_t i = 0; i < m.size(); ++i) {
+    if (Used(use, i)) ss += (y[i] - m[i]) * (y[i] - m[i]);
+  }
   return ss;
 }
 
-double RSquared(double rms, const std::vector<double>& m) {
+double RSquared(double rms, const std::vector<double>& m, const SampleMask& use = {}) {
   double mean = 0.0;
-  for (double v : m) mean += v;
-  mean /= static_cast<double>(m.size());
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < m.size(); ++i) {
+    if (Used(use, i)) {
+      mean += m[i];
+      ++n;
+    }
+  }
+  if (n == 0) return 0.0;
+  mean /= static_cast<double>(n);
   double tot = 0.0;
-  for (double v : m) tot += (v - mean) * (v - mean);
-  return tot > 0.0 ? 1.0 - rms * rms * static_cast<double>(m.size()) / tot : 0.0;
+  for (std::size_t i = 0; i < m.size(); ++i) {
+    if (Used(use, i)) tot += (m[i] - mean) * (m[i] - mean);
+  }
+  return tot > 0.0 ? 1.0 - rms * rms * static_cast<double>(n) / tot : 0.0;
 }
 
 }  // namespace
 
 FirstOrderFit FitFirstOrder(const std::vector<double>& t, const std::vector<double>& ref,
                             const std::vector<double>& angle, const FirstOrderFitSettings& st) {
-  CheckLog("FitFirstOrder", t, ref, angle);
+  CheckLog("FitFirstOrder", t, ref, angle, st.use);
   // Start: grid over tau and d with (k, y0, c) by linear least squares: y = k u + y0 v + c w,
   // u the unit-gain response from 0, v = exp(-(s)/tau) the free response and w = 1 - v the
   // response to a unit offset (s = t - t0).
@@ -167,7 +189,10 @@ FirstOrderFit FitFirstOrder(const std::vector<double>& t, const std::vector<doub
   std::vector<double> u;
   const std::size_t n = t.size();
   Eigen::MatrixXd A(n, 3);
-  const Eigen::Map<const Eigen::VectorXd> yv(angle.data(), static_cast<Eigen::Index>(n));
+  Eigen::VectorXd yw(static_cast<Eigen::Index>(n));
+  for (std::size_t i = 0; i < n; ++i) {
+    yw[static_cast<Eigen::Index>(i)] = Used(st.use, i) ? angle[i] : 0.0;
+  }
   std::vector<double> delays{0.0};
   if (st.fit_delay) {
     for (double d = 0.01; d < st.max_delay; d += 0.01) delays.push_back(d);
@@ -177,14 +202,15 @@ FirstOrderFit FitFirstOrder(const std::vector<double>& t, const std::vector<doub
       SimulateFirstOrder<double>(t, ref, tau, 1.0, 0.0, d, 0.0, &u);
       for (std::size_t i = 0; i < n; ++i) {
         const double v = std::exp(-(t[i] - t[0]) / tau);
-        A(static_cast<Eigen::Index>(i), 0) = u[i];
-        A(static_cast<Eigen::Index>(i), 1) = v;
-        A(static_cast<Eigen::Index>(i), 2) = 1.0 - v;
+        const double w = Used(st.use, i) ? 1.0 : 0.0;  // left-out rows weigh nothing
+        A(static_cast<Eigen::Index>(i), 0) = w * u[i];
+        A(static_cast<Eigen::Index>(i), 1) = w * v;
+        A(static_cast<Eigen::Index>(i), 2) = w * (1.0 - v);
       }
       const Eigen::Matrix3d AtA = A.transpose() * A;
-      const Eigen::Vector3d x = AtA.ldlt().solve(A.transpose() * yv);
+      const Eigen::Vector3d x = AtA.ldlt().solve(A.transpose() * yw);
       if (!x.allFinite()) continue;
-      const double err = (A * x - yv).squaredNorm();
+      const double err = (A * x - yw).squaredNorm();
       if (err < best_err) {
         best_err = err;
         best_tau = tau;
@@ -204,9 +230,9 @@ FirstOrderFit FitFirstOrder(const std::vector<double>& t, const std::vector<doub
   // Plain least squares first; then a Huber loss at 3x that fit's RMS, which only
   // down-weights real outliers (a scale from the sensor noise alone would also discount
   // the step transitions, where the first-order model cannot follow the loop exactly).
-  const auto r0 = FitTrajectory<5>(sim, angle, p0, lo, hi, 0.0);
-  const auto r =
-      FitTrajectory<5>(sim, angle, r0.p, lo, hi, 3.0 * std::max(r0.rms, fit.noise_sigma));
+  const auto r0 = FitTrajectory<5>(sim, angle, p0, lo, hi, 0.0, 100, kInf, st.use);
+  const auto r = FitTrajectory<5>(sim, angle, r0.p, lo, hi, 3.0 * std::max(r0.rms, fit.noise_sigma),
+                                  100, kInf, st.use);
   if (!r.converged) throw std::invalid_argument("[FitFirstOrder] the fit did not converge");
   fit.time_constant = r.p[0];
   fit.gain = r.p[1];
@@ -217,14 +243,14 @@ FirstOrderFit FitFirstOrder(const std::vector<double>& t, const std::vector<doub
   fit.rms = r.rms;
   fit.std_error = r.std_error;
   fit.delay_at_bound = st.fit_delay && r.at_bound[2] && fit.delay > 0.5 * st.max_delay;
-  fit.r_squared = RSquared(r.rms, angle);
+  fit.r_squared = RSquared(r.rms, angle, st.use);
   return fit;
 }
 
 PdFit FitPdGains(const std::vector<double>& t, const std::vector<double>& ref,
                  const std::vector<double>& angle, const FirstOrderFit& fo,
-                 const AttitudeLoopSettings& st) {
-  CheckLog("FitPdGains", t, ref, angle);
+                 const AttitudeLoopSettings& st, const SampleMask& use) {
+  CheckLog("FitPdGains", t, ref, angle, use);
   if (!(st.physics_dt > 0.0) || !(st.autopilot_rate_hz > 0.0) || !(st.motor_time_constant > 0.0)) {
     throw std::invalid_argument(
         "[FitPdGains] physics_dt, autopilot_rate_hz and "
@@ -250,7 +276,7 @@ PdFit FitPdGains(const std::vector<double>& t, const std::vector<double>& ref,
     for (double v : y) {
       if (!std::isfinite(v) || std::abs(v) > max_abs) return kInf;
     }
-    return SumSquares(y, angle);
+    return SumSquares(y, angle, use);
   };
   // Gains: K_p in [kp_lo, 1e6] 1/s^2, K_d in [1e-3, 1e4] 1/s, fitted as logarithms.
   const double kp_lo = 1e-2 / (tau * tau);
@@ -292,9 +318,10 @@ PdFit FitPdGains(const std::vector<double>& t, const std::vector<double>& ref,
     AttitudeLoopSettings sk = st;
     sk.delay = steps * h;
     const LoopSim sim{&t, &ref_c, fo.gain, fo.initial, sk};
-    const auto r0 = FitTrajectory<2>(sim, angle, p0, lo, hi, 0.0, 100, max_abs);
+    const auto r0 = FitTrajectory<2>(sim, angle, p0, lo, hi, 0.0, 100, max_abs, use);
     if (!r0.converged) return r0;
-    return FitTrajectory<2>(sim, angle, r0.p, lo, hi, 3.0 * std::max(r0.rms, noise), 100, max_abs);
+    return FitTrajectory<2>(sim, angle, r0.p, lo, hi, 3.0 * std::max(r0.rms, noise), 100, max_abs,
+                            use);
   };
   auto clamp_start = [&](std::array<double, 2> p) {
     for (int k = 0; k < 2; ++k) p[k] = std::clamp(p[k], lo[k], hi[k]);
@@ -324,15 +351,170 @@ PdFit FitPdGains(const std::vector<double>& t, const std::vector<double>& ref,
   fit.kd_std_error = fit.kd * best.std_error[1];
   fit.at_bound = best.at_bound[0] || best.at_bound[1];
   fit.rms = best.rms;
-  fit.r_squared = RSquared(best.rms, angle);
+  fit.r_squared = RSquared(best.rms, angle, use);
   AttitudeLoopSettings sk = st;
   sk.delay = fit.delay;
   std::vector<double> yf;
   SimulateAttitudeLoop<double>(t, ref_c, fo.gain, fit.kp, fit.kd, fo.initial, sk, &y);
   SimulateFirstOrder<double>(t, ref, fo.time_constant, fo.gain, fo.offset, fo.delay, fo.initial,
                              &yf);
-  fit.rms_to_first_order = std::sqrt(SumSquares(y, yf) / static_cast<double>(t.size()));
+  fit.rms_to_first_order =
+      std::sqrt(SumSquares(y, yf, use) / static_cast<double>(CountUsed(use, t.size())));
   return fit;
+}
+
+std::vector<Gap> FindGaps(const std::vector<double>& t, double factor) {
+  if (!(factor > 1.0)) throw std::invalid_argument("[FindGaps] factor must be > 1");
+  std::vector<Gap> gaps;
+  if (t.size() < 3) return gaps;
+  std::vector<double> dt(t.size() - 1);
+  for (std::size_t i = 1; i < t.size(); ++i) dt[i - 1] = t[i] - t[i - 1];
+  std::vector<double> sorted(dt);
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2),
+                   sorted.end());
+  const double median = sorted[sorted.size() / 2];
+  for (std::size_t i = 1; i < t.size(); ++i) {
+    if (dt[i - 1] > factor * median) gaps.push_back({t[i - 1], t[i], i});
+  }
+  return gaps;
+}
+
+SampleMask GapMask(const std::vector<double>& t, const std::vector<Gap>& gaps, double settle) {
+  SampleMask use(t.size(), 1);
+  for (const Gap& g : gaps) {
+    for (std::size_t i = g.index; i < t.size() && t[i] <= g.end + settle; ++i) use[i] = 0;
+  }
+  return use;
+}
+
+double FitPercent(const std::vector<double>& measured, const std::vector<double>& predicted,
+                  const SampleMask& use) {
+  double mean = 0.0;
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < measured.size(); ++i) {
+    if (Used(use, i) && std::isfinite(predicted[i])) {
+      mean += measured[i];
+      ++n;
+    }
+  }
+  if (n == 0) return kNaN;
+  mean /= static_cast<double>(n);
+  double err = 0.0, tot = 0.0;
+  for (std::size_t i = 0; i < measured.size(); ++i) {
+    if (!Used(use, i) || !std::isfinite(predicted[i])) continue;
+    err += (measured[i] - predicted[i]) * (measured[i] - predicted[i]);
+    tot += (measured[i] - mean) * (measured[i] - mean);
+  }
+  if (!(tot > 0.0)) return kNaN;
+  return 100.0 * (1.0 - std::sqrt(err / tot));
+}
+
+std::vector<double> SimulateFirstOrderFit(const std::vector<double>& t,
+                                          const std::vector<double>& ref, const FirstOrderFit& fo) {
+  std::vector<double> y;
+  SimulateFirstOrder<double>(t, ref, fo.time_constant, fo.gain, fo.offset, fo.delay, fo.initial,
+                             &y);
+  return y;
+}
+
+std::vector<double> SimulatePdFit(const std::vector<double>& t, const std::vector<double>& ref,
+                                  const FirstOrderFit& fo, const PdFit& pd,
+                                  const AttitudeLoopSettings& settings) {
+  AttitudeLoopSettings sk = settings;
+  sk.delay = pd.delay;
+  std::vector<double> ref_c(ref);
+  if (std::abs(fo.gain) > 1e-6) {
+    for (double& r : ref_c) r += fo.offset / fo.gain;
+  }
+  std::vector<double> y;
+  SimulateAttitudeLoop<double>(t, ref_c, fo.gain, pd.kp, pd.kd, fo.initial, sk, &y);
+  return y;
+}
+
+std::vector<unsigned char> SegmentFolds(const std::vector<double>& t,
+                                        const std::vector<double>& ref, double min_segment,
+                                        int* segments) {
+  std::vector<unsigned char> fold(t.size(), 2);
+  int segment = 0;
+  double segment_start = t.empty() ? 0.0 : t[0];
+  for (std::size_t i = 1; i < t.size(); ++i) {
+    // A new segment starts at a change of the reference once the current one is long enough.
+    if (ref[i] != ref[i - 1] && t[i] - segment_start >= min_segment) {
+      ++segment;
+      segment_start = t[i];
+    }
+    fold[i] = static_cast<unsigned char>(segment == 0 ? 2 : segment % 2);
+  }
+  if (segments != nullptr) *segments = t.empty() ? 0 : segment + 1;
+  return fold;
+}
+
+HeldOutValidation ValidateOnHeldOutSegments(const std::vector<double>& t,
+                                            const std::vector<double>& ref,
+                                            const std::vector<double>& angle, const SampleMask& use,
+                                            const AttitudeLoopSettings& loop, double min_segment) {
+  HeldOutValidation v;
+  v.fold = SegmentFolds(t, ref, min_segment, &v.segments);
+  if (v.segments < 3) {
+    throw std::invalid_argument(
+        "[ValidateOnHeldOutSegments] fewer than three segments: nothing to hold out");
+  }
+  const std::size_t n = t.size();
+  v.first_order.assign(n, kNaN);
+  v.pd_loop.assign(n, kNaN);
+  std::array<SampleMask, 2> test;
+  for (int f = 0; f < 2; ++f) {
+    SampleMask train(n, 0);
+    test[1 - f].assign(n, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!Used(use, i)) continue;
+      if (v.fold[i] == 2) {
+        train[i] = 1;  // the first segment fixes the start y0 of both fits
+      } else {
+        (v.fold[i] == f ? train : test[1 - f])[i] = 1;
+      }
+    }
+    FirstOrderFitSettings fs;
+    fs.use = train;
+    const FirstOrderFit fo = FitFirstOrder(t, ref, angle, fs);
+    const std::vector<double> y_fo = SimulateFirstOrderFit(t, ref, fo);
+    std::vector<double> y_pd(n, kNaN);
+    try {
+      const PdFit pd = FitPdGains(t, ref, angle, fo, loop, train);
+      y_pd = SimulatePdFit(t, ref, fo, pd, loop);
+    } catch (const std::exception& e) {
+      v.pd_error = e.what();
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      if (test[1 - f][i] == 0) continue;
+      v.first_order[i] = y_fo[i];
+      v.pd_loop[i] = y_pd[i];
+    }
+  }
+  auto rms = [&](const std::vector<double>& y, const SampleMask& m) {
+    double ss = 0.0;
+    std::size_t k = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (m[i] == 0) continue;
+      ss += (y[i] - angle[i]) * (y[i] - angle[i]);  // NaN when the PD fit failed: NaN rms
+      ++k;
+    }
+    return k > 0 ? std::sqrt(ss / static_cast<double>(k)) : kNaN;
+  };
+  SampleMask held_out(n, 0);
+  for (std::size_t i = 0; i < n; ++i) held_out[i] = test[0][i] | test[1][i];
+  auto margin = [](double pd_rms, double fo_rms) {
+    return (pd_rms - fo_rms) / std::min(pd_rms, fo_rms);
+  };
+  for (int f = 0; f < 2; ++f) {
+    v.fold_margin[f] = margin(rms(v.pd_loop, test[f]), rms(v.first_order, test[f]));
+  }
+  v.first_order_rms = rms(v.first_order, held_out);
+  v.pd_rms = rms(v.pd_loop, held_out);
+  v.margin = margin(v.pd_rms, v.first_order_rms);
+  v.first_order_fit_percent = FitPercent(angle, v.first_order, held_out);
+  v.pd_fit_percent = v.pd_error.empty() ? FitPercent(angle, v.pd_loop, held_out) : kNaN;
+  return v;
 }
 
 }  // namespace fnmpc::sysid

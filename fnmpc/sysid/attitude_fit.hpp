@@ -2,6 +2,7 @@
 #pragma once
 
 #include <array>
+#include <string>
 #include <vector>
 
 #include "fnmpc/core/types.hpp"
@@ -30,11 +31,38 @@ struct FirstOrderFit {
   double r_squared = 0.0;       ///< 1 - SS_res / SS_tot of the measured angle
 };
 
+/// Per-sample mask: a non-zero entry marks a sample that enters a fit (empty: all).
+using SampleMask = std::vector<unsigned char>;
+
 /// Settings of FitFirstOrder.
 struct FirstOrderFitSettings {
   bool fit_delay = true;   ///< false: d = 0
   double max_delay = 0.1;  ///< upper bound of d [s]
+  SampleMask use;          ///< samples that enter the fit (empty: all)
 };
+
+/// Missing samples in a log: the interval between two consecutive time stamps that are
+/// further apart than `factor` times the median sampling interval.
+struct Gap {
+  double start = 0.0;     ///< time of the last sample before the gap [s]
+  double end = 0.0;       ///< time of the first sample after it [s]
+  std::size_t index = 0;  ///< index of the first sample after it
+};
+
+/// The gaps of the increasing time stamps `t` (steps > factor x the median step). Throws
+/// std::invalid_argument when factor <= 1.
+std::vector<Gap> FindGaps(const std::vector<double>& t, double factor);
+
+/// Mask of the samples not affected by the gaps: a sample at t_i in (start, end + settle]
+/// of a gap is left out, because what the reference did inside the gap is unknown and the
+/// response after it depends on it until the loop has settled.
+SampleMask GapMask(const std::vector<double>& t, const std::vector<Gap>& gaps, double settle);
+
+/// "Fit" of a prediction in percent (normalised RMS error): 100 (1 - |y - yhat| / |y -
+/// mean(y)|) over the samples with use[i] != 0 (empty: all); 100 is a perfect fit, 0 no
+/// better than the mean, negative worse. NaN when no sample is used.
+double FitPercent(const std::vector<double>& measured, const std::vector<double>& predicted,
+                  const SampleMask& use = {});
 
 /// Exact response of the first-order model with delay and offset at the sample times `t`
 /// (increasing), for the reference samples `ref` (held constant until the next sample) [rad].
@@ -95,6 +123,50 @@ struct PdFit {
 /// gives a finite simulation or the fit fails.
 PdFit FitPdGains(const std::vector<double>& t, const std::vector<double>& ref,
                  const std::vector<double>& angle, const FirstOrderFit& first_order,
-                 const AttitudeLoopSettings& settings);
+                 const AttitudeLoopSettings& settings, const SampleMask& use = {});
+
+/// Response of the fitted PD loop (gain, offset and start from `first_order`) at `t`.
+std::vector<double> SimulatePdFit(const std::vector<double>& t, const std::vector<double>& ref,
+                                  const FirstOrderFit& first_order, const PdFit& pd,
+                                  const AttitudeLoopSettings& settings);
+
+/// Response of the fitted first-order model at `t`.
+std::vector<double> SimulateFirstOrderFit(const std::vector<double>& t,
+                                          const std::vector<double>& ref,
+                                          const FirstOrderFit& first_order);
+
+/// Two folds of held-out segments: the record is cut at the changes of the reference into
+/// segments of at least `min_segment` seconds (shorter ones are merged with the next), and
+/// alternate segments form fold 0 and fold 1. The first segment is fold 2: it is in the
+/// training data of both folds (it fixes the start y0 of the simulated response, which a
+/// fit without the record's start could not determine) and never held out. Returns the
+/// fold of every sample (0, 1 or 2).
+std::vector<unsigned char> SegmentFolds(const std::vector<double>& t,
+                                        const std::vector<double>& ref, double min_segment,
+                                        int* segments = nullptr);
+
+/// Cross-validation of the two attitude model structures on held-out segments: each model
+/// is fitted on one fold (samples of `use` only) and predicts the other, in both directions.
+struct HeldOutValidation {
+  std::vector<unsigned char> fold;        ///< fold of every sample (0/1)
+  int segments = 0;                       ///< number of segments
+  std::vector<double> first_order;        ///< held-out prediction of each sample, first order
+  std::vector<double> pd_loop;            ///< same, PD loop (NaN where its fit failed)
+  double first_order_rms = kNaN;          ///< RMS of the held-out predictions [rad]
+  double pd_rms = kNaN;                   ///< same, PD loop [rad]
+  double first_order_fit_percent = kNaN;  ///< FitPercent of the held-out predictions
+  double pd_fit_percent = kNaN;           ///< same, PD loop
+  /// Relative held-out RMS difference (PD - first order) / min of the two, per fold
+  /// (predicting fold 0 and fold 1) and pooled; > 0: the first-order model predicts better.
+  std::array<double, 2> fold_margin{kNaN, kNaN};
+  double margin = kNaN;
+  std::string pd_error;  ///< why the PD loop could not be fitted on a fold (empty: it could)
+};
+
+/// Runs the cross-validation (FitFirstOrder and FitPdGains with `loop` on each fold).
+HeldOutValidation ValidateOnHeldOutSegments(const std::vector<double>& t,
+                                            const std::vector<double>& ref,
+                                            const std::vector<double>& angle, const SampleMask& use,
+                                            const AttitudeLoopSettings& loop, double min_segment);
 
 }  // namespace fnmpc::sysid

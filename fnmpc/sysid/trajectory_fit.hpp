@@ -9,6 +9,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <stdexcept>
 #include <vector>
 
 namespace fnmpc::sysid {
@@ -140,14 +141,22 @@ class SampleCost : public ceres::SizedCostFunction<1, kP> {
 /// a ceres::Jet). `lower`/`upper` bound the parameters; `p0` is the start. A point whose
 /// simulation is not finite or exceeds `max_abs` in magnitude is rejected (Ceres shrinks
 /// its step), so the optimiser never sees a diverged simulation; a start point that is
-/// rejected makes the fit fail (converged = false).
+/// rejected makes the fit fail (converged = false). `use` (empty: every sample) marks the
+/// samples that enter the fit with a non-zero entry; the simulation still runs over all of
+/// them (samples left out, e.g. after a gap in the log, only carry no residual), and rms,
+/// std_error are over the used samples.
 template <int kP, class Sim>
 TrajectoryFitResult<kP> FitTrajectory(const Sim& sim, const std::vector<double>& measured,
                                       const std::array<double, kP>& p0,
                                       const std::array<double, kP>& lower,
                                       const std::array<double, kP>& upper, double huber_scale,
                                       int max_iterations = 100,
-                                      double max_abs = std::numeric_limits<double>::infinity()) {
+                                      double max_abs = std::numeric_limits<double>::infinity(),
+                                      const std::vector<unsigned char>& use = {}) {
+  if (!use.empty() && use.size() != measured.size()) {
+    throw std::invalid_argument("[FitTrajectory] the sample mask and the data differ in length");
+  }
+  auto used = [&](std::size_t i) { return use.empty() || use[i] != 0; };
   TrajectoryFitResult<kP> out;
   out.p = p0;
   out.std_error.fill(std::numeric_limits<double>::quiet_NaN());
@@ -156,7 +165,10 @@ TrajectoryFitResult<kP> FitTrajectory(const Sim& sim, const std::vector<double>&
   po.evaluation_callback = &cache;
   ceres::Problem problem(po);
   problem.AddParameterBlock(out.p.data(), kP);
+  std::size_t n_used = 0;
   for (std::size_t i = 0; i < measured.size(); ++i) {
+    if (!used(i)) continue;
+    ++n_used;
     ceres::LossFunction* loss = huber_scale > 0.0 ? new ceres::HuberLoss(huber_scale) : nullptr;
     problem.AddResidualBlock(new internal::SampleCost<kP, Sim>(&cache, i, measured[i]), loss,
                              out.p.data());
@@ -183,12 +195,15 @@ TrajectoryFitResult<kP> FitTrajectory(const Sim& sim, const std::vector<double>&
     return out;
   }
   double ss = 0.0;
-  Eigen::MatrixXd J(static_cast<Eigen::Index>(measured.size()), kP);
+  Eigen::MatrixXd J(static_cast<Eigen::Index>(n_used), kP);
+  Eigen::Index row = 0;
   for (std::size_t i = 0; i < measured.size(); ++i) {
+    if (!used(i)) continue;
     ss += (cache.y[i] - measured[i]) * (cache.y[i] - measured[i]);
-    for (int k = 0; k < kP; ++k) J(static_cast<Eigen::Index>(i), k) = cache.dy[i][k];
+    for (int k = 0; k < kP; ++k) J(row, k) = cache.dy[i][k];
+    ++row;
   }
-  out.rms = measured.empty() ? 0.0 : std::sqrt(ss / static_cast<double>(measured.size()));
+  out.rms = n_used == 0 ? 0.0 : std::sqrt(ss / static_cast<double>(n_used));
   const Eigen::VectorXd se = LeastSquaresStdErrors(J, ss);
   for (int k = 0; k < kP; ++k) {
     out.std_error[k] = se[k];
