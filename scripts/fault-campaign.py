@@ -53,7 +53,10 @@ def flight_window(sc, duration):
     ph = sc.get("phases", {})
     start = (ph.get("takeoff_time", 1.0) + ph.get("takeoff_height", 1.0) / ph.get("climb_speed", 0.5)
              + ph.get("hover_before_switch", 1.5) + ph.get("blend_time", 0.5) + 0.5)
-    return start, duration - 7.0  # fnmpc run --duration lands at duration - 7 s
+    # fnmpc run --duration keeps the scenario's landing allowance (duration - landing_time):
+    # the landing moves earlier by the time cut (docs/scenarios.md, "Shortened runs").
+    landing = ph.get("landing_time", 50.0) - (sc.get("duration", 60.0) - duration)
+    return start, landing
 
 
 def draw_faults(rng, kind, names, t0, t1):

@@ -73,6 +73,7 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
   rec.duration = duration;
   rec.vehicles.resize(nv);
   rec.downed.resize(nv);
+  rec.pairs.resize(static_cast<std::size_t>(nv) * static_cast<std::size_t>(nv - 1) / 2);
   std::vector<VehicleCsvLog> csv;
   csv.reserve(nv);
   for (int i = 0; i < nv; ++i) {
@@ -176,10 +177,33 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
         truth[i] = world.GetTrueState(i);
         positions[i] = truth[i].position;
       }
+      // Separation of every pair from the truth: the closest approach of each pair, each
+      // vehicle and the run, and the first time a pair came closer than a collision.
       for (int i = 0; i < nv; ++i) {
         for (int j = i + 1; j < nv; ++j) {
-          rec.min_separation =
-              std::min(rec.min_separation, (truth[i].position - truth[j].position).norm());
+          const double d = (truth[i].position - truth[j].position).norm();
+          PairApproach& pair = rec.pairs[PairIndex(i, j, nv)];
+          if (d < pair.min_distance) {
+            pair.min_distance = d;
+            pair.min_time = t;
+          }
+          if (d < sc.metrics.collision_distance && std::isnan(pair.first_collision_time)) {
+            pair.first_collision_time = t;
+          }
+          for (const auto& [a, b] : {std::pair{i, j}, std::pair{j, i}}) {
+            VehicleRecord& A = rec.vehicles[static_cast<std::size_t>(a)];
+            if (d < A.min_separation) {
+              A.min_separation = d;
+              A.min_separation_time = t;
+              A.min_separation_to = b;
+            }
+          }
+          if (d < rec.min_separation) {
+            rec.min_separation = d;
+            rec.min_separation_time = t;
+            rec.min_separation_pair[0] = i;
+            rec.min_separation_pair[1] = j;
+          }
         }
       }
       // Leader reference and steady-state flag (formation window: trajectory start to landing).
@@ -294,13 +318,31 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
           }
           // Touchdown: the first control step of the landing phase with the true CoM within
           // 1.5 cm of its resting height (the feet touch); its true vertical speed is kept.
+          const bool on_ground =
+              truth[i].position.z() < sim::World::kRestHeight + kGroundContactHeight;
           if ((out.phase == FlightPhase::kLanding || out.phase == FlightPhase::kLanded ||
                out.phase == FlightPhase::kFailsafe) &&
-              std::isnan(L.touchdown_time) &&
-              truth[i].position.z() < sim::World::kRestHeight + 0.015) {
+              std::isnan(L.touchdown_time) && on_ground) {
             L.touchdown_vz = truth[i].velocity.z();
             L.touchdown_time = t;
           }
+          // Ground strike: the same contact while the vehicle is meant to fly (NMPC phase,
+          // or a take-off that had lifted off). Vehicles a fault downs are judged apart.
+          const bool downed_by_fault =
+              faults.motors_off.index == i && world.GetAutopilotStatus(i).motors_killed;
+          const bool flying =
+              out.phase == FlightPhase::kNmpc ||
+              (out.phase == FlightPhase::kTakeoff && L.max_altitude >= kLiftOffHeight);
+          if (flying && on_ground && !downed_by_fault && std::isnan(L.ground_strike_time)) {
+            L.ground_strike_time = t;
+            L.ground_strike_vz = std::min(L.previous_vz, truth[i].velocity.z());
+            L.ground_strike_phase = std::string(formation::ToString(out.phase));
+            if (options.progress) {
+              std::fprintf(stderr, "\n%s t = %.2f s: %s struck the ground (%s phase)\n",
+                           options.label.c_str(), t, v.name.c_str(), L.ground_strike_phase.c_str());
+            }
+          }
+          L.previous_vz = truth[i].velocity.z();
           if (out.phase == FlightPhase::kLanded) L.motors_off = true;
           // Motors off (fault): its touchdown is the impact, not what its controller sees
           // after the crash.
@@ -331,6 +373,7 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
           const Vec3 start = world_config.vehicles[static_cast<std::size_t>(i)].position;
           const double distance = (x.position - start).head<2>().norm();
           L.max_altitude = std::max(L.max_altitude, altitude);
+          L.max_distance = std::max(L.max_distance, distance);
           if (std::isnan(L.envelope_time) && (!(altitude <= sc.envelope.max_altitude) ||
                                               !(distance <= sc.envelope.max_distance))) {
             L.envelope_time = t;

@@ -135,9 +135,16 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
       const double tilt =
           std::acos(std::clamp(std::cos(x.euler.x()) * std::cos(x.euler.y()), -1.0, 1.0));
       const bool touched = std::isfinite(L.touchdown_vz);
+      // A vehicle that struck the ground in flight did not land safely, whatever its
+      // touchdown afterwards (it may have been on the ground already).
       const bool ok =
           touched && L.motors_off && std::abs(L.touchdown_vz) < sc.metrics.touchdown_speed_max &&
-          tilt < sc.metrics.max_tilt_landed && x.position.z() < sim::World::kRestHeight + 0.05;
+          tilt < sc.metrics.max_tilt_landed && x.position.z() < sim::World::kRestHeight + 0.05 &&
+          std::isnan(L.ground_strike_time);
+      j["ground_strike_time_s"] = Num(L.ground_strike_time);
+      j["ground_strike_vertical_speed_mps"] = Num(L.ground_strike_vz);
+      j["ground_strike_phase"] =
+          L.ground_strike_phase.empty() ? json(nullptr) : json(L.ground_strike_phase);
       j["touchdown_time_s"] = Num(L.touchdown_time);
       j["touchdown_vertical_speed_mps"] = Num(L.touchdown_vz);
       j["final_tilt_rad"] = tilt;
@@ -159,7 +166,12 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
       j["moved_by_hand"] = true;
     }
     j["max_altitude_m"] = Num(L.max_altitude);
+    j["max_distance_from_start_m"] = L.max_distance;
     j["left_envelope_time_s"] = Num(L.envelope_time);
+    j["min_separation_m"] = Num(L.min_separation);
+    j["min_separation_to"] =
+        L.min_separation_to >= 0 ? json(sc.vehicles[L.min_separation_to].name) : json(nullptr);
+    j["min_separation_time_s"] = Num(L.min_separation_time);
     vehicles[v.name] = j;
   }
   // ---- Faults: what happened, per fault.
@@ -307,35 +319,74 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
   // ---- Failures: why this run must not count as a success, per vehicle.
   const bool complete = r.stopped.empty() && r.sim_error.empty();
   json run_failures = json::array();
+  long collisions = 0, ground_strikes = 0, hard_touchdowns = 0;
+  // Collisions: every pair whose true CoMs came closer than metrics.collision_distance, also
+  // with a vehicle downed by a fault or moved by hand (they are in the air all the same).
+  for (int i = 0; i < nv; ++i) {
+    for (int k = i + 1; k < nv; ++k) {
+      const PairApproach& p = r.pairs[PairIndex(i, k, nv)];
+      if (std::isnan(p.first_collision_time)) continue;
+      ++collisions;
+      run_failures.push_back(
+          {{"vehicle", sc.vehicles[i].name},
+           {"vehicles", {sc.vehicles[i].name, sc.vehicles[k].name}},
+           {"kind", "collision"},
+           {"time_s", p.first_collision_time},
+           {"reason", fmt::format("collision with {} at t = {:.2f} s: true CoM distance below {} m "
+                                  "(metrics.collision_distance), closest {:.3f} m at t = {:.2f} s",
+                                  sc.vehicles[k].name, p.first_collision_time,
+                                  sc.metrics.collision_distance, p.min_distance, p.min_time)}});
+    }
+  }
   for (int i = 0; i < nv; ++i) {
     const auto& v = sc.vehicles[i];
     const VehicleRecord& L = r.vehicles[i];
-    auto fail = [&](const std::string& reason) {
-      run_failures.push_back({{"vehicle", v.name}, {"reason", reason}});
+    auto fail = [&](const char* kind, double time, const std::string& reason) {
+      run_failures.push_back(
+          {{"vehicle", v.name}, {"kind", kind}, {"time_s", Num(time)}, {"reason", reason}});
     };
-    if (std::isfinite(L.envelope_time)) fail(L.envelope_reason);
+    if (std::isfinite(L.envelope_time)) fail("envelope", L.envelope_time, L.envelope_reason);
     const bool downed_by_fault =
         std::find(downed_by.begin(), downed_by.end(), i) != downed_by.end();
     if (!r.controlled[i] || downed_by_fault) continue;  // moved by hand, or downed on purpose
     const double takeoff_height =
         std::isfinite(v.takeoff_height) ? v.takeoff_height : sc.takeoff_height;
     if (complete && !(L.max_altitude >= 0.5 * takeoff_height)) {
-      fail(fmt::format("never took off: highest altitude {:.3f} m, take-off height {:.2f} m",
+      fail("never_took_off", kNaN,
+           fmt::format("never took off: highest altitude {:.3f} m, take-off height {:.2f} m",
                        L.max_altitude, takeoff_height));
     }
     if (std::isfinite(L.failsafe_time)) {
-      fail(fmt::format("failsafe at t = {:.2f} s ({})", L.failsafe_time, L.failsafe_reason));
+      fail("failsafe", L.failsafe_time,
+           fmt::format("failsafe at t = {:.2f} s ({})", L.failsafe_time, L.failsafe_reason));
+    }
+    if (std::isfinite(L.ground_strike_time)) {
+      ++ground_strikes;
+      fail("ground_strike", L.ground_strike_time,
+           fmt::format("struck the ground at t = {:.2f} s in the {} phase: true CoM within {} m "
+                       "of its resting height, vertical speed {:.3f} m/s",
+                       L.ground_strike_time, L.ground_strike_phase, kGroundContactHeight,
+                       L.ground_strike_vz));
+    }
+    if (std::isfinite(L.touchdown_vz) &&
+        !(std::abs(L.touchdown_vz) < sc.metrics.touchdown_speed_max)) {
+      ++hard_touchdowns;
+      fail("hard_touchdown", L.touchdown_time,
+           fmt::format("hard touchdown at t = {:.2f} s: vertical speed {:.3f} m/s (max {} m/s, "
+                       "metrics.touchdown_speed_max)",
+                       L.touchdown_time, L.touchdown_vz, sc.metrics.touchdown_speed_max));
     }
     const json& vj = vehicles[v.name];
     if (complete && !vj.value("landed_safely", false)) {
-      fail(fmt::format(
-          "not landed safely at the end: touchdown vertical speed {} (max {} m/s), motors off "
-          "{}, final tilt {:.3f} rad (max {})",
-          vj["touchdown_vertical_speed_mps"].is_number()
-              ? fmt::format("{:.3f} m/s", vj["touchdown_vertical_speed_mps"].get<double>())
-              : std::string("none (no touchdown)"),
-          sc.metrics.touchdown_speed_max, vj.value("motors_off_at_end", false),
-          vj.value("final_tilt_rad", kNaN), sc.metrics.max_tilt_landed));
+      fail("not_landed", kNaN,
+           fmt::format(
+               "not landed safely at the end: touchdown vertical speed {} (max {} m/s), motors off "
+               "{}, final tilt {:.3f} rad (max {})",
+               vj["touchdown_vertical_speed_mps"].is_number()
+                   ? fmt::format("{:.3f} m/s", vj["touchdown_vertical_speed_mps"].get<double>())
+                   : std::string("none (no touchdown)"),
+               sc.metrics.touchdown_speed_max, vj.value("motors_off_at_end", false),
+               vj.value("final_tilt_rad", kNaN), sc.metrics.max_tilt_landed));
     }
   }
 
@@ -388,6 +439,15 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
   s["solver_converged_every_step"] = failures == 0 && fallbacks == 0 && nmpc_steps > 0;
   s["guarded_commands"] = guarded;
   s["min_separation_m"] = Num(r.min_separation);
+  s["min_separation_pair"] = r.min_separation_pair[0] >= 0
+                                 ? json{sc.vehicles[r.min_separation_pair[0]].name,
+                                        sc.vehicles[r.min_separation_pair[1]].name}
+                                 : json(nullptr);
+  s["min_separation_time_s"] = Num(r.min_separation_time);
+  s["collision_distance_m"] = sc.metrics.collision_distance;
+  s["collisions"] = collisions;
+  s["ground_strikes"] = ground_strikes;
+  s["hard_touchdowns"] = hard_touchdowns;
   s["landed_safely"] = landed_safely;
   s["vehicles"] = vehicles;
   if (faults.any()) s["faults"] = fj;
@@ -413,7 +473,8 @@ json AggregateRuns(const std::vector<json>& runs) {
   for (const char* k :
        {"max_formation_error_m", "max_formation_error_flight_m", "mean_formation_error_flight_m",
         "solver_time_max_s", "solver_time_max_after_first_step_s", "fallbacks", "recoveries",
-        "failsafes", "leaderless_landings", "solver_failures", "guarded_commands"}) {
+        "failsafes", "leaderless_landings", "solver_failures", "guarded_commands", "collisions",
+        "ground_strikes", "hard_touchdowns"}) {
     a[k] = Num(Max(values(k)));
   }
   {
@@ -455,7 +516,8 @@ json AggregateRuns(const std::vector<json>& runs) {
   a["sample_time_s"] = runs.front()["sample_time_s"];
   a["formation_window_s"] = runs.front()["formation_window_s"];
   a["aggregation"] =
-      "means: mean over runs; max_*, solver_time_max_*, fallbacks, failures: worst run; "
+      "means: mean over runs; max_*, solver_time_max_*, fallbacks, failures, collisions, "
+      "ground_strikes, hard_touchdowns: worst run; "
       "min_separation_m: smallest; flags: all runs; link messages: sums";
   a["run_summaries"] = runs;
   return a;

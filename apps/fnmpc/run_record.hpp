@@ -2,6 +2,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -44,6 +45,17 @@ struct VehicleRecord {
   std::string tie_loss_reason;
   double first_step_time = kNaN;
   double touchdown_vz = kNaN, touchdown_time = kNaN;
+  // Closest approach of any other vehicle (true CoM distance) and when, with whom.
+  double min_separation = kInf, min_separation_time = kNaN;
+  int min_separation_to = -1;
+  // First ground contact outside take-off and landing (true CoM within kGroundContactHeight
+  // of its resting height in the NMPC phase, or in the take-off after the vehicle had lifted
+  // off): time, true vertical speed (the lower of this control step's and the one before) and
+  // phase.
+  double ground_strike_time = kNaN, ground_strike_vz = kNaN;
+  std::string ground_strike_phase;
+  double previous_vz = 0.0;   // true v_z at the previous control step [m/s]
+  double max_distance = 0.0;  // largest horizontal distance from its start [m]
   double max_thrust_jump_at_switch = kNaN;
   bool motors_off = false;
   // Per control step in the formation window (followers): time, steady flag, errors to the
@@ -63,6 +75,26 @@ struct DownedLog {
   Vec3 impact_position = Vec3::Constant(kNaN);
 };
 
+/// Height above its resting height [m] at which a vehicle's true CoM counts as on the
+/// ground (the feet touch): touchdowns and ground strikes.
+inline constexpr double kGroundContactHeight = 0.015;
+/// A vehicle has lifted off once its CoM rose this far above its resting height [m]; ground
+/// contact in the take-off phase after that is a strike.
+inline constexpr double kLiftOffHeight = 0.1;
+
+/// Closest approach of two vehicles (true CoM distance at the control steps).
+struct PairApproach {
+  double min_distance = kInf, min_time = kNaN;
+  double first_collision_time = kNaN;  ///< first time below metrics.collision_distance [s]
+};
+
+/// Index of the pair (i, j), i < j, among n vehicles' pairs (row by row).
+inline std::size_t PairIndex(int i, int j, int n) {
+  return static_cast<std::size_t>(i) * static_cast<std::size_t>(n) -
+         static_cast<std::size_t>(i) * static_cast<std::size_t>(i + 1) / 2 +
+         static_cast<std::size_t>(j - i - 1);
+}
+
 /// The whole run.
 struct RunRecord {
   double duration = 0.0;  ///< simulated time asked for [s]
@@ -73,6 +105,9 @@ struct RunRecord {
   std::vector<sim::AutopilotStatus> final_autopilot;  ///< at the end of the loop
   std::vector<std::int64_t> estimator_rejections;     ///< at the end, per controlled vehicle
   double min_separation = kInf;                       ///< true CoM distance of any two vehicles [m]
+  double min_separation_time = kNaN;                  ///< when [s]
+  int min_separation_pair[2] = {-1, -1};              ///< between these two
+  std::vector<PairApproach> pairs;                    ///< per pair (PairIndex)
   long injected_failures = 0;  ///< forced solver fallbacks (faults.solver_failures)
   std::vector<long> dropped;   ///< per faults.sensor_dropouts window
   long measurements = 0, outliers = 0;

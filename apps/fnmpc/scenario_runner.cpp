@@ -100,19 +100,44 @@ void ApplyReality(const config::ScenarioConfig& sc, std::uint64_t seed, sim::Wor
 
 config::ScenarioConfig Shortened(const config::ScenarioConfig& scenario, double duration) {
   config::ScenarioConfig s = scenario;
-  const double landing_margin = 7.0;
+  // The scenario's own landing allowance (its duration after its landing time) is kept: the
+  // landing moves earlier by the time cut, and the leader keeps the legs it finishes by then.
+  const double cut = scenario.duration - duration;
+  const double allowance = scenario.duration - scenario.landing_time;
   s.duration = duration;
-  s.landing_time = duration - landing_margin;
+  s.landing_time = scenario.landing_time - cut;
+  if (!(s.landing_time > s.trajectory_start)) {
+    throw config::ConfigError(fmt::format(
+        "--duration {:g}: too short for {}: it keeps the scenario's landing allowance of {:g} s "
+        "(duration {:g} s, phases.landing_time {:g} s) after the leader's start at {:g} s "
+        "(leader.start_time): more than {:g} s",
+        duration, scenario.file, allowance, scenario.duration, scenario.landing_time,
+        scenario.trajectory_start, scenario.trajectory_start + allowance));
+  }
+  // Every vehicle's own landing time moves with the timeline: before the leader starts it
+  // stays, inside the scenario's flight (leader start to landing) it keeps its place in
+  // proportion, after the scenario's landing it moves by the time cut (its allowance kept).
+  const double flight = scenario.landing_time - scenario.trajectory_start;
+  const double shortened_flight = s.landing_time - s.trajectory_start;
+  for (config::ScenarioVehicle& v : s.vehicles) {
+    if (!std::isfinite(v.landing_time) || v.landing_time <= scenario.trajectory_start) continue;
+    v.landing_time = v.landing_time >= scenario.landing_time
+                         ? v.landing_time - cut
+                         : s.trajectory_start + (v.landing_time - scenario.trajectory_start) *
+                                                    shortened_flight / flight;
+  }
+  // The leader's legs that end by the new landing (at least one; never more than it had).
   if (s.leader_mode == "waypoints") {
     const double per_leg = s.leg_duration + s.hold_duration;
-    const int legs = std::max(1, static_cast<int>((s.landing_time - s.trajectory_start) / per_leg));
+    const int legs = std::max(
+        1, static_cast<int>(std::floor((shortened_flight - s.leg_duration) / per_leg)) + 1);
     if (static_cast<int>(s.waypoints.size()) > legs) s.waypoints.resize(legs);
   } else {
     const double per_move = s.walk_max_leg + s.walk_max_hold;
-    s.walk_moves = std::max(1, static_cast<int>((s.landing_time - s.trajectory_start) / per_move));
-  }
-  if (!(s.landing_time > s.trajectory_start)) {
-    throw std::invalid_argument("[Shortened] duration too short for take-off, one leg and landing");
+    s.walk_moves = std::min(
+        scenario.walk_moves,
+        std::max(1,
+                 static_cast<int>(std::floor((shortened_flight - s.walk_max_leg) / per_move)) + 1));
   }
   return s;
 }

@@ -60,8 +60,13 @@ nlohmann::json RunScenario(const config::ScenarioConfig& scenario, const RunOpti
 /// of each max, min or flag, and the list of runs.
 nlohmann::json AggregateRuns(const std::vector<nlohmann::json>& runs);
 
-/// Returns a copy of `scenario` shortened to `duration` [s]: the leader's trajectory and the
-/// landing are compressed so that the run still takes off, flies and lands.
+/// Returns a copy of `scenario` shortened to `duration` [s] (`fnmpc run --duration`): the
+/// landing moves earlier by the time cut, keeping the scenario's landing allowance (duration
+/// minus phases.landing_time); every vehicle's own landing_time moves with it (in proportion
+/// inside the leader's flight, by the cut after the scenario's landing, not at all before the
+/// leader starts); the leader keeps the legs (moves) it finishes by the new landing, at least
+/// one. Throws config::ConfigError naming --duration when the landing would not come after the
+/// leader's start.
 config::ScenarioConfig Shortened(const config::ScenarioConfig& scenario, double duration);
 
 }  // namespace fnmpc::app

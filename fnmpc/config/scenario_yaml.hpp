@@ -170,15 +170,21 @@ struct RunCriteria {
   double settle_time = 3.0;
   double touchdown_speed_max = 0.6;
   double max_tilt_landed = 0.3;
+  double collision_distance = 0.3;
 
   template <class Archive>
   void Serialize(Archive* a) {
     a->Visit("settle_time", &settle_time, fnmpc::NonNegative(),
              "[s] steady state: the leader's reference has been at rest at least this long");
     a->Visit("touchdown_speed_max", &touchdown_speed_max, fnmpc::Positive(),
-             "[m/s] landed safely: |v_z| at touchdown below this");
+             "[m/s] landed safely: |v_z| at touchdown below this; a faster touchdown is a "
+             "hard touchdown, a failure of the run");
     a->Visit("max_tilt_landed", &max_tilt_landed, fnmpc::Positive(),
              "[rad] landed safely: final tilt below this");
+    a->Visit("collision_distance", &collision_distance, fnmpc::Positive(),
+             "[m] a collision: two vehicles' true CoMs closer than this at a control step fail "
+             "the run (`failures`, exit 3, docs/failure.md); the verdict's threshold, not the "
+             "controllers' r_min (`safety.collision_radius`)");
   }
 };
 

@@ -136,9 +136,10 @@ void BindScenario(py::module_& m) {
             return app::Shortened(s, duration);
           },
           py::arg("duration"),
-          "A copy shortened to `duration` [s] (as `fnmpc run --duration`): the leader's "
-          "trajectory and the landing are compressed so the run still takes off, flies and "
-          "lands.")
+          "A copy shortened to `duration` [s] (as `fnmpc run --duration`): the landing moves "
+          "earlier by the time cut, keeping the scenario's landing allowance, every vehicle's "
+          "landing time moves with it and the leader keeps the legs it finishes by then "
+          "(docs/scenarios.md, \"Shortened runs\").")
       .def("__repr__", [](const ScenarioConfig& s) {
         return "<fnmpc.Scenario '" + s.name + "', " + std::to_string(s.vehicles.size()) +
                " vehicles, " + std::to_string(s.duration) + " s>";

@@ -16,7 +16,7 @@ import pytest
 
 import fnmpc
 
-DURATION = 30.0  # s: take-off, two legs of the leader, landing (--duration shortens)
+DURATION = 30.0  # s: take-off, one leg of the leader, landing (--duration shortens)
 SEED = 2
 # Figures measured with the wall clock: they differ between any two runs.
 TIMING_KEYS = ("solver_time", "over_budget")

@@ -92,19 +92,28 @@ for d in 0 -5 nan inf 200; do
   stderr_has "duration" "--duration $d names the flag"
 done
 absent "$tmp/d" "a refused run created its folder"
+# --duration keeps the scenario's landing allowance (the triangle's 82 - 73 = 9 s) after the
+# leader's start at 12 s: 21 s and less are refused with the limit, nothing written.
+expect "1" "--duration 21 refused (no flight before the landing allowance)" -- "$fnmpc" run "$tri" --duration 21 -o "$tmp/d"
+stderr_has "landing allowance of 9 s" "--duration 21 names the allowance"
+stderr_has "more than 21 s" "--duration 21 names the shortest duration"
+absent "$tmp/d" "a refused --duration created its folder"
+# Shortened scenarios with their own landing allowance and per-vehicle landing times land.
+expect 0 "flying-leader-paper --duration 40 lands" -- "$fnmpc" run "$src/config/scenarios/flying-leader-paper.yaml" --duration 40 -q -o "$tmp/fl40"
+expect 0 "follower-below-leader --duration 30 lands" -- "$fnmpc" run "$src/config/scenarios/follower-below-leader.yaml" --duration 30 -q -o "$tmp/fb30"
 
 # ---- Compensation levels: an unknown one is refused; the level is recorded in
 # summary.json at the top and per run, cooperative mode's link statistics too.
 expect 1 "--compensation bogus refused" -- "$fnmpc" run "$tri" --compensation bogus -o "$tmp/c"
 stderr_has "must be one of none, observer, wake, cooperative" "--compensation bogus lists the levels"
 [[ -e "$tmp/c" ]] && { echo "FAIL: a refused run created its folder"; fails=$((fails + 1)); }
-expect 0 "--compensation observer flies" -- "$fnmpc" run "$tri" --compensation observer --duration 20 -q -o "$tmp/obs"
+expect 0 "--compensation observer flies" -- "$fnmpc" run "$tri" --compensation observer --duration 26 -q -o "$tmp/obs"
 for f in "$tmp/obs/summary.json" "$tmp/obs/run-01/summary.json"; do
   grep -q '"compensation": "observer"' "$f" || { echo "FAIL: $f lacks the level"; fails=$((fails + 1)); }
 done
 head -1 "$tmp/obs/run-01/follower1.csv" | grep -q ',est_fx,est_fy,est_fz$' ||
   { echo "FAIL: the CSV lacks est_f*"; fails=$((fails + 1)); }
-expect 0 "--compensation cooperative flies" -- "$fnmpc" run "$tri" --compensation cooperative --duration 20 -q -o "$tmp/coop"
+expect 0 "--compensation cooperative flies" -- "$fnmpc" run "$tri" --compensation cooperative --duration 26 -q -o "$tmp/coop"
 for f in "$tmp/coop/summary.json" "$tmp/coop/run-01/summary.json"; do
   grep -q '"compensation": "cooperative"' "$f" || { echo "FAIL: $f lacks the level"; fails=$((fails + 1)); }
   grep -Eq '"delivered": [1-9]' "$f" || { echo "FAIL: $f lacks delivered plans"; fails=$((fails + 1)); }
@@ -154,7 +163,7 @@ file_has "name: mine" "$tmp/campaign/campaign.yaml" "campaign overwritten"
 
 # ---- A run that leaves its envelope exits 3 naming vehicle and reason.
 sed 's/^metrics:/envelope: {max_altitude: 0.5}\nmetrics:/' "$tmp/tri.yaml" >"$tmp/env.yaml"
-expect 3 "run leaving its envelope exits 3" -- "$fnmpc" run "$tmp/env.yaml" --duration 20 -q -o "$tmp/env"
+expect 3 "run leaving its envelope exits 3" -- "$fnmpc" run "$tmp/env.yaml" --duration 26 -q -o "$tmp/env"
 stderr_has "vehicle leader: left the flight envelope" "failure names vehicle and reason"
 file_has '"complete": true' "$tmp/env/summary.json" "summary not complete"
 
@@ -171,7 +180,7 @@ sed -e '/^reality:/d' -e 's/^metrics:/reality:\n  wake: false\n  wind:\n    disc
 # Run from $tmp: MuJoCo's default warning handler would append to MUJOCO_LOG.TXT there; the
 # simulator routes its warnings to stderr instead.
 cd "$tmp" || exit 1
-expect 4 "run whose simulator becomes unstable exits 4" -- "$fnmpc" run "$tmp/gust.yaml" --duration 20 -q -o "$tmp/gust"
+expect 4 "run whose simulator becomes unstable exits 4" -- "$fnmpc" run "$tmp/gust.yaml" --duration 26 -q -o "$tmp/gust"
 cd - >/dev/null || exit 1
 [ ! -e "$tmp/MUJOCO_LOG.TXT" ] || { echo "FAIL: MuJoCo wrote MUJOCO_LOG.TXT into the working directory"; fails=$((fails + 1)); }
 stderr_has "MuJoCo warning: Nan, Inf or huge value in QACC" "MuJoCo's warning on stderr"
@@ -189,7 +198,7 @@ awk -v t="$last_t" 'BEGIN { exit !(t >= 3.9 && t <= 4.1) }' || { echo "FAIL: lea
 # folder that happens to hold a scenario.yaml and a summary.json is refused, nothing deleted.
 mkdir -p "$tmp/project/src" && echo 'int main() {}' >"$tmp/project/src/main.cpp"
 echo notes >"$tmp/project/notes.md" && cp "$tri" "$tmp/project/scenario.yaml" && echo '{}' >"$tmp/project/summary.json"
-expect 1 "--overwrite refuses a folder fnmpc did not write" -- "$fnmpc" run "$tri" --overwrite --duration 20 -q -o "$tmp/project"
+expect 1 "--overwrite refuses a folder fnmpc did not write" -- "$fnmpc" run "$tri" --overwrite --duration 26 -q -o "$tmp/project"
 stderr_has "no .fnmpc-manifest" "refusal says why"
 stderr_has "delete it yourself" "refusal says what to do"
 for f in src/main.cpp notes.md scenario.yaml summary.json; do
@@ -225,8 +234,8 @@ file_has '"complete": false' "$tmp/term/summary.json" "terminated summary not ma
 
 # ---- merge: every shard checked before -o is touched; a refused merge leaves -o byte for
 # byte, makes no folder, never prints a raw "filesystem error".
-expect 0 "shard 0/2" -- "$fnmpc" run "$tri" --duration 20 --runs 2 --shard 0/2 --timing off -q -o "$tmp/m/s0"
-expect 0 "shard 1/2" -- "$fnmpc" run "$tri" --duration 20 --runs 2 --shard 1/2 --timing off -q -o "$tmp/m/s1"
+expect 0 "shard 0/2" -- "$fnmpc" run "$tri" --duration 26 --runs 2 --shard 0/2 --timing off -q -o "$tmp/m/s0"
+expect 0 "shard 1/2" -- "$fnmpc" run "$tri" --duration 26 --runs 2 --shard 1/2 --timing off -q -o "$tmp/m/s1"
 expect 0 "merge" -- "$fnmpc" merge "$tmp/m/s0" "$tmp/m/s1" -o "$tmp/m/out"
 snapshot() { (cd "$1" && find . -type f -print0 | sort -z | xargs -0 sha256sum); }
 snapshot "$tmp/m/out" >"$tmp/m/before"

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "apps/fnmpc/scenario_runner.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
@@ -40,11 +41,12 @@ std::string Reasons(const json& s, const std::string& vehicle) {
 }
 
 TEST(RunOutcomeTest, LeavingTheEnvelopeAndAnEarlyLandingAreReported) {
-  // Given the triangle shortened to 16 s with the leader landing 0.5 s into the formation
+  // Given the triangle shortened to 18 s (landing at 9 s: its 9 s landing allowance kept)
+  // with the leader landing 0.5 s into the formation
   // window and an envelope lower than the take-off height,
   config::ScenarioConfig sc = Triangle();
   sc.trajectory_start = 8.0;
-  sc = Shortened(sc, 16.0);
+  sc = Shortened(sc, 18.0);
   sc.vehicles[0].landing_time = 8.5;
   sc.envelope.max_altitude = 0.5;
   RunOptions o;
@@ -109,6 +111,120 @@ TEST(RunOutcomeTest, StoppedRunIsMarkedIncompleteAndKeepsItsLogs) {
   for (const std::string name : {"leader", "follower1", "follower2"}) {
     EXPECT_TRUE(std::filesystem::exists(dir + "/" + name + ".csv")) << name;
     EXPECT_FALSE(std::filesystem::exists(dir + "/" + name + ".csv.part")) << name;
+  }
+}
+
+/// The failures of `kind` in a run summary.
+std::vector<json> FailuresOf(const json& s, const std::string& kind) {
+  std::vector<json> out;
+  for (const auto& f : s["failures"]) {
+    if (f.value("kind", "") == kind) out.push_back(f);
+  }
+  return out;
+}
+
+TEST(RunOutcomeTest, AVehicleFallingOntoAnotherIsACollision) {
+  // Given the follower 0.8 m below its leader, the leader's motors stopped at 20 s (it falls
+  // onto the follower: physics, not the controller, decides this one),
+  config::ScenarioConfig sc =
+      Shortened(config::LoadScenarioFile(std::string(FNMPC_SOURCE_DIR) +
+                                         "/config/scenarios/follower-below-leader.yaml"),
+                30.0);
+  sc.faults.motors_off.vehicle = "leader";
+  sc.faults.motors_off.index = 0;
+  sc.faults.motors_off.time = 20.0;
+  RunOptions o;
+  o.seed = 1;
+  const json s = RunScenario(sc, o, Dir("collision"));
+  // the run records the pair's closest approach below metrics.collision_distance (0.3 m),
+  // and the collision is a failure naming both vehicles and its time.
+  ASSERT_TRUE(s["complete"].get<bool>()) << s.dump(2);
+  EXPECT_LT(s["min_separation_m"].get<double>(), 0.3);
+  EXPECT_EQ(s["min_separation_pair"], json({"leader", "follower"}));
+  EXPECT_GE(s["min_separation_time_s"].get<double>(), 20.0);
+  EXPECT_EQ(s["collisions"].get<long>(), 1);
+  const std::vector<json> c = FailuresOf(s, "collision");
+  ASSERT_EQ(c.size(), 1u) << s["failures"].dump(2);
+  EXPECT_EQ(c[0]["vehicles"], json({"leader", "follower"}));
+  EXPECT_GE(c[0]["time_s"].get<double>(), 20.0);
+  EXPECT_NE(c[0]["reason"].get<std::string>().find("collision with follower"), std::string::npos);
+  EXPECT_EQ(s["vehicles"]["follower"]["min_separation_to"], "leader");
+  EXPECT_LT(s["vehicles"]["follower"]["min_separation_m"].get<double>(), 0.3);
+}
+
+TEST(RunOutcomeTest, AFollowerDrivenIntoTheGroundStruckItAndDidNotLandSafely) {
+  // Given the triangle with follower1's place 1.3 m below the leader's 1 m (under the ground)
+  // and the soft minimum height off,
+  config::ScenarioConfig sc = Shortened(Triangle(), 30.0);
+  sc.vehicles[1].neighbours[0].desired.z() = 1.3;
+  sc.vehicles[1].neighbours[1].desired.z() = 1.3;
+  sc.vehicles[2].neighbours[1].desired.z() = -1.3;
+  sc.safety.min_altitude = 0.0;
+  RunOptions o;
+  o.seed = 1;
+  const json s = RunScenario(sc, o, Dir("strike"));
+  // follower1 reaches the ground in its NMPC phase: a ground strike with its time, phase and
+  // speed, it has not landed safely (whatever its touchdown later), and the others are clean.
+  ASSERT_TRUE(s["complete"].get<bool>()) << s.dump(2);
+  const json& f1 = s["vehicles"]["follower1"];
+  ASSERT_TRUE(f1["ground_strike_time_s"].is_number()) << f1.dump(2);
+  EXPECT_EQ(f1["ground_strike_phase"], "nmpc");
+  EXPECT_LT(f1["ground_strike_vertical_speed_mps"].get<double>(), 0.0);
+  EXPECT_FALSE(f1["landed_safely"].get<bool>());
+  EXPECT_FALSE(s["landed_safely"].get<bool>());
+  const std::vector<json> g = FailuresOf(s, "ground_strike");
+  ASSERT_EQ(g.size(), 1u) << s["failures"].dump(2);
+  EXPECT_EQ(g[0]["vehicle"], "follower1");
+  EXPECT_DOUBLE_EQ(g[0]["time_s"].get<double>(), f1["ground_strike_time_s"].get<double>());
+  EXPECT_EQ(s["ground_strikes"].get<long>(), 1);
+  EXPECT_TRUE(s["vehicles"]["leader"]["ground_strike_time_s"].is_null());
+  EXPECT_TRUE(s["vehicles"]["follower2"]["ground_strike_time_s"].is_null());
+  EXPECT_EQ(s["collisions"].get<long>(), 0);
+}
+
+TEST(ShortenedTest, KeepsTheLandingAllowanceAndMovesEveryLandingTime) {
+  const std::string dir = std::string(FNMPC_SOURCE_DIR) + "/config/scenarios/";
+  // Given every shipped scenario, its own duration changes nothing: the landing times, the
+  // leader's waypoints and moves are the scenario's own.
+  for (const char* name :
+       {"triangle", "flying-leader-paper", "follower-below-leader", "manual-leader",
+        "stress/stacked", "stress/leader-lands-early", "stress/wedge10-fast", "scale/wedge28"}) {
+    const config::ScenarioConfig sc = config::LoadScenarioFile(dir + name + ".yaml");
+    const config::ScenarioConfig same = Shortened(sc, sc.duration);
+    EXPECT_EQ(same.landing_time, sc.landing_time) << name;
+    EXPECT_EQ(same.waypoints.size(), sc.waypoints.size()) << name;
+    EXPECT_EQ(same.walk_moves, sc.walk_moves) << name;
+    for (std::size_t i = 0; i < sc.vehicles.size(); ++i) {
+      EXPECT_EQ(config::LandingTime(same, static_cast<int>(i)),
+                config::LandingTime(sc, static_cast<int>(i)))
+          << name << " vehicle " << i;
+    }
+  }
+  // Given the follower below its leader (82 s; the follower lands at 60 s, the leader at 73 s),
+  // shortened to 30 s: the landing keeps its 9 s allowance (21 s), the follower's landing keeps
+  // its place in the leader's flight (12 + 48 * 9 / 61 s), before the leader's, and the leader
+  // keeps the one leg it finishes by then.
+  const config::ScenarioConfig below = config::LoadScenarioFile(dir + "follower-below-leader.yaml");
+  const config::ScenarioConfig s30 = Shortened(below, 30.0);
+  EXPECT_DOUBLE_EQ(s30.duration, 30.0);
+  EXPECT_DOUBLE_EQ(s30.landing_time, 21.0);
+  EXPECT_DOUBLE_EQ(config::LandingTime(s30, 1), 12.0 + 48.0 * 9.0 / 61.0);
+  EXPECT_DOUBLE_EQ(config::LandingTime(s30, 0), 21.0);
+  EXPECT_EQ(s30.waypoints.size(), 1u);
+  // The flying leader (74 s, landing at 64 s) at 40 s lands at 30 s after two legs.
+  const config::ScenarioConfig fl40 =
+      Shortened(config::LoadScenarioFile(dir + "flying-leader-paper.yaml"), 40.0);
+  EXPECT_DOUBLE_EQ(fl40.landing_time, 30.0);
+  EXPECT_EQ(fl40.waypoints.size(), 2u);
+  // A duration that leaves no flight before the allowance is refused naming the flag and the
+  // shortest duration.
+  try {
+    Shortened(below, 21.0);
+    ADD_FAILURE() << "--duration 21 accepted";
+  } catch (const config::ConfigError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("--duration 21"), std::string::npos) << what;
+    EXPECT_NE(what.find("more than 21 s"), std::string::npos) << what;
   }
 }
 

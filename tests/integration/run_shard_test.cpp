@@ -74,7 +74,7 @@ class RunShardTest : public ::testing::Test {
  protected:
   void SetUp() override {
     file_ = std::string(FNMPC_SOURCE_DIR) + "/config/scenarios/triangle.yaml";
-    sc_ = Shortened(config::LoadScenarioFile(file_), 20.0);
+    sc_ = Shortened(config::LoadScenarioFile(file_), 26.0);
     base_ = testing::TempDir() + "/fnmpc-shard-" + std::to_string(getpid());
     fs::remove_all(base_);
     options_.runs = 3;
@@ -299,7 +299,7 @@ TEST_F(RunShardTest, ARefusedOrFailedMergeLeavesTheOutputAsItWas) {
 }
 
 TEST_F(RunShardTest, ResumeRefusesAnotherExperimentsFolder) {
-  // Given a shard folder of a 20 s experiment,
+  // Given a shard folder of a 26 s experiment,
   Fly("s1", ParseShard("1/2"));
   RunFolderOptions o = options_;
   o.shard = ParseShard("1/2");
@@ -315,7 +315,7 @@ TEST_F(RunShardTest, ResumeRefusesAnotherExperimentsFolder) {
     return std::string();
   };
   config::ScenarioConfig shorter = sc_;
-  shorter.duration = 19.0;
+  shorter.duration = 25.0;
   EXPECT_NE(refusal(shorter, o).find("key 'duration_s'"), std::string::npos);
   RunFolderOptions other = o;
   other.shard = ParseShard("0/2");

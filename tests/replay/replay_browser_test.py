@@ -62,7 +62,7 @@ def main():
     os.makedirs(work, exist_ok=True)
     try:
         run_dir = os.path.join(work, "run")
-        subprocess.run([a.fnmpc, "run", a.scenario, "--duration", "20", "--seed", "3", "-q",
+        subprocess.run([a.fnmpc, "run", a.scenario, "--duration", "26", "--seed", "3", "-q",
                         "-o", run_dir], check=True)
         subprocess.run([a.fnmpc, "report", run_dir, "--replay-only"], check=True)
         copied = os.path.join(work, "copy")

@@ -22,7 +22,7 @@ HELD_OUT = os.path.join(SOURCE, "config/scenarios/flying-leader-paper.yaml")
 def tune(out, *extra, trials=2):
     return subprocess.run(
         [FNMPC, "tune", TRIANGLE, "--held-out", HELD_OUT, "--trials", str(trials), "--seeds", "1",
-         "--held-out-seeds", "1", "--duration", "20", "-o", str(out), *extra],
+         "--held-out-seeds", "1", "--duration", "26", "-o", str(out), *extra],
         capture_output=True, text=True, timeout=1200)
 
 
