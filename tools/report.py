@@ -108,8 +108,10 @@ def main():
     fig.savefig(os.path.join(run_dir, images[-1][0]), dpi=110)
     plt.close(fig)
 
-    # Formation errors, cost and KKT over time, all runs.
-    for what, col, log in (("formation_errors", "err", False), ("cost", "cost", True), ("kkt", "kkt", True)):
+    # Formation errors, cost and KKT over time, all runs (per follower: none in a single-vehicle
+    # scenario).
+    per_follower = (("formation_errors", "err", False), ("cost", "cost", True), ("kkt", "kkt", True))
+    for what, col, log in per_follower if followers else ():
         fig, axes = plt.subplots(len(followers), 1, figsize=(9, 3.2 * len(followers)), squeeze=False)
         for ax, name in zip(axes[:, 0], followers):
             nbs = runs[0]["vehicles"][name].get("neighbours", [])  # order of err0, err1

@@ -225,8 +225,7 @@ void ListedVehicles(YamlMap& map, const model::VehicleParams& default_params,
                     const SensorsConfig& default_sensors, ScenarioConfig* scenario) {
   ScenarioConfig& s = *scenario;
   std::vector<YamlMap> vmaps = map.MapList("vehicles");
-  if (vmaps.size() < 2)
-    throw map.ErrorAt("vehicles", "need at least two vehicles (a leader and a follower)");
+  if (vmaps.empty()) throw map.ErrorAt("vehicles", "need at least one vehicle (the leader)");
   if (vmaps.size() > static_cast<std::size_t>(kMaxVehicles))
     throw map.ErrorAt("vehicles", "at most " + std::to_string(kMaxVehicles) + " vehicles");
   std::map<std::string, int> index;

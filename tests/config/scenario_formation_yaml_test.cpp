@@ -126,6 +126,16 @@ TEST(ScenarioFormationYamlTest, BadBlocksNameFileLineAndKey) {
             std::string::npos);
 }
 
+TEST(ScenarioFormationYamlTest, ALeaderAloneIsAScenarioAndNoVehicleIsAnError) {
+  const ScenarioConfig single =
+      LoadScenarioFile(std::string(FNMPC_SOURCE_DIR) + "/config/scenarios/single.yaml");
+  ASSERT_EQ(single.vehicles.size(), 1u);
+  EXPECT_TRUE(single.vehicles[0].leader);
+  const std::string none = ErrorOf("vehicles: []\n");
+  EXPECT_NE(none.find("vehicles"), std::string::npos) << none;
+  EXPECT_NE(none.find("at least one vehicle"), std::string::npos) << none;
+}
+
 TEST(ScenarioFormationYamlTest, TiesBeyondTheSensorRangeAreWarnings) {
   // 9 m rows: beyond the default relative sensor's 8 m range.
   const FormationFile f("formation: {shape: line, count: 3, spacing: 9.0}\n");
