@@ -31,6 +31,7 @@ struct FlyArgs {
   std::string link;
   std::string autopilot;
   std::string link_settings;
+  std::string signing_key;
   std::string clock = "local";
   std::string out;
   long long seed = -1;
@@ -115,6 +116,7 @@ int Fly(const FlyArgs& a) {
   options.autopilot = a.autopilot;
   options.settings_file = a.link_settings;
   options.autopilot_clock = a.clock == "autopilot";
+  options.signing_key = a.signing_key;
   OnboardLink link(ControllerConfigFor(sc, index, LeaderTrajectory(sc, seed)), index, options);
 
   const std::string dir = a.out.empty() ? "fly-" + a.vehicle : a.out;
@@ -237,6 +239,10 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
       ->check(CLI::IsMember({"px4", "ardupilot"}));
   sub->add_option("--link-settings", a->link_settings,
                   "YAML file of session settings (docs/autopilot.md, 'Link settings')")
+      ->check(CLI::ExistingFile);
+  sub->add_option("--signing-key", a->signing_key,
+                  "MAVLink 2 signing key file (64 hex digits, or 32 bytes / PX4's 40-byte key "
+                  "file): sign every frame, accept only signed ones (docs/autopilot.md)")
       ->check(CLI::ExistingFile);
   sub->add_option("--clock", a->clock,
                   "local (flight: own steady clock) or autopilot (lockstep with `fnmpc "

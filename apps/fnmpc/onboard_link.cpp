@@ -13,6 +13,7 @@
 #include "fnmpc/config/settings_yaml.hpp"
 #include "fnmpc/link/link_address.hpp"
 #include "fnmpc/link/mavlink_connection.hpp"
+#include "fnmpc/link/signing_key.hpp"
 
 namespace fnmpc::app {
 namespace {
@@ -68,6 +69,7 @@ struct OnboardLink::Impl {
                 o.autopilot_clock ? OnboardClock::kAutopilot : OnboardClock::kLocal),
         autopilot_clock(o.autopilot_clock) {
     (void)vehicle;
+    if (!o.signing_key.empty()) conn.EnableSigning(link::ReadSigningKey(o.signing_key), 0);
     // Listen mode answers only the flight controller (never a bridge or junk on the port).
     conn.ExpectPeer(static_cast<std::uint8_t>(s.target_system),
                     static_cast<std::uint8_t>(s.target_component));
@@ -192,6 +194,7 @@ nlohmann::json OnboardLink::Summary() const {
           {"flight_steps", v.flight_steps()},
           {"unusable_estimate_steps", v.unusable_estimate_steps()},
           {"clock_rate", v.clock_map().rate()},
+          {"link_signed", impl_->conn.signing()},
           {"clock_resets", v.clock_map().resets()},
           {"ticks", v.ticks()},
           {"final_phase", formation::ToString(v.controller().phase())},

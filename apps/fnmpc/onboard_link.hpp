@@ -19,6 +19,8 @@ struct OnboardLinkOptions {
   std::string settings_file;  ///< YAML of autopilot::SessionSettings keys ("": defaults)
   /// The autopilot's clock (lockstep with `fnmpc sim-link --lockstep`), else the caller's.
   bool autopilot_clock = false;
+  /// MAVLink 2 signing key file ("": unsigned; link::ReadSigningKey).
+  std::string signing_key;
 };
 
 class OnboardLink {

@@ -30,6 +30,7 @@
 #include "fnmpc/core/rotation.hpp"
 #include "fnmpc/link/link_address.hpp"
 #include "fnmpc/link/mavlink_connection.hpp"
+#include "fnmpc/link/signing_key.hpp"
 #include "fnmpc/mavlink/frame_conversions.hpp"
 #include "fnmpc/sim/world.hpp"
 
@@ -47,6 +48,7 @@ struct SimLinkArgs {
   bool lockstep = false;
   bool scenario_rates = false;
   double clock_rate = 1.0;
+  std::string signing_key;
   long long seed = -1;
   std::string out;
   std::string autopilot_settings;
@@ -137,6 +139,7 @@ int SimLink(const SimLinkArgs& a) {
     v[i].conn = std::make_unique<link::MavlinkConnection>(
         link::OpenTransport(link::ParseLinkAddress(address)), autopilot::SystemIdOf(i),
         autopilot::mav::kCompAutopilot);
+    if (!a.signing_key.empty()) v[i].conn->EnableSigning(link::ReadSigningKey(a.signing_key), 0);
     autopilot::EmulatedAutopilotSettings s = es;
     s.system_id = autopilot::SystemIdOf(i);
     v[i].autopilot = std::make_unique<EmulatedAutopilot>(s);
@@ -408,6 +411,10 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
       ->check(FiniteIn(0.5, 2.0))
       ->excludes("--lockstep")
       ->capture_default_str();
+  sub->add_option("--signing-key", a->signing_key,
+                  "MAVLink 2 signing key file: the autopilots sign every frame and accept only "
+                  "signed ones (fnmpc fly --signing-key)")
+      ->check(CLI::ExistingFile);
   sub->add_option("--autopilot-settings", a->autopilot_settings,
                   "YAML file of emulated-autopilot settings (docs/autopilot.md)")
       ->check(CLI::ExistingFile);

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "fnmpc/link/mavlink_connection.hpp"
 
+#include <algorithm>
+#include <chrono>
 #include <stdexcept>
 #include <utility>
 
@@ -12,7 +14,25 @@ MavlinkConnection::MavlinkConnection(std::unique_ptr<Transport> transport, std::
   if (!transport_) throw std::invalid_argument("MavlinkConnection: no transport");
 }
 
+void MavlinkConnection::EnableSigning(const mavlink::SigningKey& key, std::uint8_t link_id) {
+  encoder_.EnableSigning(key, link_id);
+  parser_.SetSigningKey(key);
+  UpdateSigningTime();
+}
+
+void MavlinkConnection::UpdateSigningTime() {
+  if (!encoder_.signing()) return;
+  const auto unix_us = std::chrono::duration_cast<std::chrono::microseconds>(
+                           std::chrono::system_clock::now().time_since_epoch())
+                           .count();
+  const std::uint64_t t = mavlink::SigningTimestampFromUnixUs(
+      static_cast<std::uint64_t>(std::max<std::int64_t>(unix_us, 0)));
+  encoder_.SetTimestamp(t);
+  parser_.SetTimestamp(t);
+}
+
 bool MavlinkConnection::Send(const mavlink::Message& message) {
+  UpdateSigningTime();
   const std::size_t n = encoder_.Encode(message, frame_buffer_);
   const bool sent =
       n > 0 && transport_->Write(std::span<const std::uint8_t>(frame_buffer_.data(), n));

@@ -9,6 +9,8 @@ fnmpc=$1
 src=$2
 autopilot=$3
 scenario=${4:-$src/config/scenarios/triangle.yaml}
+# "signed" as the fifth argument: both sides sign with a fresh key (--signing-key).
+signed=${5:-}
 work=$(mktemp -d)
 pids=()
 cleanup() {
@@ -25,11 +27,17 @@ vehicles=$(/usr/bin/python3 -c "
 import sys, yaml
 print(' '.join(v['name'] for v in yaml.safe_load(open(sys.argv[1]))['vehicles']))" "$scenario")
 
+sign=()
+if [ "$signed" = signed ]; then
+  od -An -tx1 -N32 /dev/urandom | tr -d ' \n' > "$work/key.hex"
+  sign=(--signing-key "$work/key.hex")
+fi
+
 # In process.
 "$fnmpc" run "$scenario" -o "$work/inproc" --quiet > /dev/null
 
 # Over the link: the endpoint first, then the onboard computers.
-"$fnmpc" sim-link "$scenario" --autopilot "$autopilot" --lockstep --port "$base" \
+"$fnmpc" sim-link "$scenario" --autopilot "$autopilot" --lockstep --port "$base" "${sign[@]}" \
   -o "$work/link" --quiet > "$work/sim-link.out" 2> "$work/sim-link.err" &
 sim=$!
 pids+=("$sim")
@@ -37,7 +45,7 @@ i=0
 fly_pids=()
 for v in $vehicles; do
   "$fnmpc" fly "$v" "$scenario" --link "udpout:127.0.0.1:$((base + i))" \
-    --autopilot "$autopilot" --clock autopilot -o "$work/fly/$v" --quiet \
+    --autopilot "$autopilot" --clock autopilot -o "$work/fly/$v" --quiet "${sign[@]}" \
     2> "$work/fly-$v.err" &
   fly_pids+=("$!")
   pids+=("$!")
@@ -61,9 +69,9 @@ for v in $vehicles; do
   i=$((i + 1))
 done
 
-/usr/bin/python3 - "$work" $vehicles <<'PY'
+/usr/bin/python3 - "$work" "${signed:-unsigned}" $vehicles <<'PY'
 import json, sys
-work, vehicles = sys.argv[1], sys.argv[2:]
+work, signed, vehicles = sys.argv[1], sys.argv[2] == "signed", sys.argv[3:]
 inproc = json.load(open(f"{work}/inproc/summary.json"))
 link = json.load(open(f"{work}/link/summary.json"))
 assert link["complete"], link
@@ -76,6 +84,8 @@ for v in vehicles:
     # The endpoint's other traffic (ids fnmpc does not decode) is skipped, not discarded
     assert fly["link_counters"]["bytes_discarded"] == 0, fly["link_counters"]
     assert fly["link_counters"]["unknown_frames"] > 0, fly["link_counters"]
+    assert fly["link_counters"]["signature_failures"] == 0, fly["link_counters"]
+    assert fly["link_signed"] == signed, (v, fly["link_signed"])
     # Disarmed by the emulated autopilot's rules (land detector), not left armed
     assert link["vehicles"][v]["armed_at_end"] is False, (v, link["vehicles"][v])
     assert fly["failsafe"] is False and fly["fallbacks"] == 0, fly
