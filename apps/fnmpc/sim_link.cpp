@@ -47,6 +47,7 @@ struct SimLinkArgs {
   int port = 14600;
   bool lockstep = false;
   bool scenario_rates = false;
+  bool connect = false;
   double clock_rate = 1.0;
   std::string signing_key;
   long long seed = -1;
@@ -73,6 +74,8 @@ struct LinkedVehicle {
   std::unique_ptr<link::MavlinkConnection> conn;
   std::unique_ptr<EmulatedAutopilot> autopilot;
   bool connected = false;
+  long setpoints_armed = 0;  // SET_ATTITUDE_TARGETs received while armed
+  double first_setpoint_wall = kNaN, last_setpoint_wall = kNaN;
   bool gone = false;  // stopped answering the lockstep's ticks
   bool replied = false;
   double armed_time = kNaN, airborne_time = kNaN, touchdown_time = kNaN;
@@ -135,7 +138,8 @@ int SimLink(const SimLinkArgs& a) {
   std::filesystem::create_directories(dir);
   std::vector<LinkedVehicle> v(static_cast<std::size_t>(nv));
   for (int i = 0; i < nv; ++i) {
-    const std::string address = fmt::format("udp:{}:{}", a.host, a.port + i);
+    const std::string address =
+        fmt::format("{}:{}:{}", a.connect ? "udpout" : "udp", a.host, a.port + i);
     v[i].conn = std::make_unique<link::MavlinkConnection>(
         link::OpenTransport(link::ParseLinkAddress(address)), autopilot::SystemIdOf(i),
         autopilot::mav::kCompAutopilot);
@@ -163,6 +167,14 @@ int SimLink(const SimLinkArgs& a) {
       v[i].autopilot->OnFrame(f, t, &out);
       if (const auto* sp = std::get_if<mavlink::SetAttitudeTarget>(&f.message)) {
         if (static_cast<int>(sp->time_boot_ms) == tick_ms) v[i].replied = true;
+        // The setpoint stream the autopilot receives while armed (wall clock: real time).
+        if (sp->type_mask != 0xFF && v[i].autopilot->armed()) {
+          const double wall =
+              std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
+                  .count();
+          if (v[i].setpoints_armed++ == 0) v[i].first_setpoint_wall = wall;
+          v[i].last_setpoint_wall = wall;
+        }
       }
     });
     for (const mavlink::Message& m : out) v[i].conn->Send(m);
@@ -177,7 +189,15 @@ int SimLink(const SimLinkArgs& a) {
   while (g_stop_signal == 0) {
     bool all = true;
     for (int i = 0; i < nv; ++i) {
-      if (!v[i].connected) poll(i, 0.01);
+      if (!v[i].connected) {
+        // --connect: the onboard computer listens; our HEARTBEATs tell it where we are.
+        if (a.connect) {
+          v[i].autopilot->Step(since(wait_start), &out);
+          for (const mavlink::Message& m : out) v[i].conn->Send(m);
+          out.Clear();
+        }
+        poll(i, 0.01);
+      }
       all = all && v[i].connected;
     }
     if (all) break;
@@ -335,18 +355,24 @@ int SimLink(const SimLinkArgs& a) {
     const mavlink::ParserCounters& pc = L.conn->counters();
     const bool landed = std::isfinite(L.touchdown_time);
     all_flew = all_flew && std::isfinite(L.armed_time) && landed && !L.gone;
-    nlohmann::json j = {{"armed_time_s", Num(L.armed_time)},
-                        {"airborne_time_s", Num(L.airborne_time)},
-                        {"touchdown_time_s", Num(L.touchdown_time)},
-                        {"max_altitude_m", L.max_altitude},
-                        {"failsafe", L.autopilot->failsafe()},
-                        {"failsafe_time_s", Num(L.autopilot->failsafe_time())},
-                        {"final_mode", autopilot::ToString(L.autopilot->mode())},
-                        {"armed_at_end", L.autopilot->armed()},
-                        {"stopped_answering", L.gone},
-                        {"frames_in", pc.frames_ok},
-                        {"crc_errors", pc.crc_errors},
-                        {"frames_out", L.conn->frames_sent()}};
+    nlohmann::json j = {
+        {"armed_time_s", Num(L.armed_time)},
+        {"airborne_time_s", Num(L.airborne_time)},
+        {"touchdown_time_s", Num(L.touchdown_time)},
+        {"max_altitude_m", L.max_altitude},
+        {"failsafe", L.autopilot->failsafe()},
+        {"failsafe_time_s", Num(L.autopilot->failsafe_time())},
+        {"final_mode", autopilot::ToString(L.autopilot->mode())},
+        {"armed_at_end", L.autopilot->armed()},
+        {"stopped_answering", L.gone},
+        {"setpoints_armed", L.setpoints_armed},
+        {"setpoint_rate_armed_hz",
+         Num(L.setpoints_armed > 1 ? static_cast<double>(L.setpoints_armed - 1) /
+                                         (L.last_setpoint_wall - L.first_setpoint_wall)
+                                   : kNaN)},
+        {"frames_in", pc.frames_ok},
+        {"crc_errors", pc.crc_errors},
+        {"frames_out", L.conn->frames_sent()}};
     if (!sc.vehicles[i].leader) {
       const double mean = Mean(L.errors), steady = Mean(L.steady_errors), mx = Max(L.errors);
       j["formation_error_mean_m"] = Num(mean);
@@ -401,6 +427,9 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
   sub->add_flag("--lockstep", a->lockstep,
                 "advance only when every `fnmpc fly --clock autopilot` answered the control "
                 "tick (default: real time)");
+  sub->add_flag("--connect", a->connect,
+                "vehicle i sends to udpout:HOST:PORT+i (`fnmpc fly --link udp:...` listens) "
+                "instead of listening there");
   sub->add_flag("--scenario-rates", a->scenario_rates,
                 "send IMU, compass and battery at the scenario's sensor rates instead of the "
                 "emulated autopilot's stream rates (PX4: HIGHRES_IMU 50 Hz unless asked for "
