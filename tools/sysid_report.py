@@ -32,6 +32,10 @@ def fmt_num(x):
     return "-" if x is None else ("%.6g" % x if isinstance(x, (int, float)) else str(x))
 
 
+def pct(x):
+    return "-" if x is None else f"{x:.1f} %"
+
+
 def stage_lines(stages):
     """summary.md section per stage: parameters with standard errors, residuals, checks."""
     lines = []
@@ -71,10 +75,50 @@ def sysid_report(d, s):
              "Vehicle file: " + ("complete" if s.get("complete") else
                                  "**INCOMPLETE** (failed stages below)"), ""]
     lines += stage_lines(s.get("stages", []))
+    lines += validation_lines(s)
     lines += ["", "Plots: bench.png, pendulum_{x,y,z}.png, attitude_{roll,pitch,yaw}.png "
               "(of the stages that ran)", ""]
     with open(os.path.join(d, "summary.md"), "w") as f:
         f.write("\n".join(lines))
+
+
+def validation_lines(s):
+    """Gaps, model selection and held-out fit per axis (docs/sysid.md)."""
+    lines = []
+    g = s.get("gaps")
+    if g is not None:
+        lines += ["", "## Gaps in the attitude log", "",
+                  f"{g['count']} gap(s) (time step > {g['factor']} x the median); "
+                  f"{g['excluded_samples']} of {g['samples']} samples left out of the fits "
+                  f"(up to {g['settle']} s after each gap)."]
+        if g["intervals"]:
+            lines += [""] + [f"- {a:.3f} - {b:.3f} s" for a, b in g["intervals"][:50]]
+            if len(g["intervals"]) > 50:
+                lines.append(f"- ... {len(g['intervals']) - 50} more (summary.json)")
+    att = s.get("attitude", {})
+    if any("validation" in att.get(a, {}) for a in ("roll", "pitch", "yaw")):
+        lines += ["", "## Model selection and held-out validation", "",
+                  "| axis | held-out fit, first order | held-out fit, PD loop | RMS first order "
+                  "[rad] | RMS PD loop [rad] | margin (folds) | written | transport delay |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for a in ("roll", "pitch", "yaw"):
+            at = att.get(a, {})
+            v = at.get("validation")
+            if v is None:
+                continue
+            fm = v.get("fold_margins") or [None, None]
+            folds = ", ".join("-" if x is None else f"{100 * x:+.1f} %" for x in fm)
+            m = v.get("margin")
+            lines.append(
+                f"| {a} | {pct(v.get('first_order_fit_percent'))} | "
+                f"{pct(v.get('pd_loop_fit_percent'))} | {fmt_num(v.get('first_order_rms'))} | "
+                f"{fmt_num(v.get('pd_loop_rms'))} | "
+                f"{'-' if m is None else f'{100 * m:+.1f} %'} ({folds}) | {at['delay_model']} | "
+                f"{1000 * at['transport_delay']:.1f} ms"
+                f"{'' if at.get('transport_delay_identifiable') else ' (not identifiable)'} |")
+        for w in s.get("warnings", []):
+            lines += ["", f"Warning: {w}"]
+    return lines
 
 
 def bench_plot(d):
@@ -119,7 +163,7 @@ def attitude_plots(d, s):
     for axis in ("roll", "pitch", "yaw"):
         a = read_csv(os.path.join(d, f"attitude_{axis}.csv"))
         at = s["attitude"][axis]
-        fig, ax = plt.subplots(figsize=(10, 3.5))
+        fig, (ax, hx) = plt.subplots(2, 1, figsize=(10, 6.5), sharex=True)
         ax.plot(a["t"], a["ref"], "k--", lw=1, label="reference")
         ax.plot(a["t"], a["angle"], ".", ms=2, label="feedback (measured)")
         ax.plot(a["t"], a["first_order"], "-", lw=1.2,
@@ -129,9 +173,34 @@ def attitude_plots(d, s):
             ax.plot(a["t"], a["pd_loop"], ":", lw=1.2,
                     label=f"sim PD loop: K_p {at['kp']:.1f}, K_d {at['kd']:.2f}, "
                           f"delay {at['pd_delay']:.3f} s")
-        ax.set_xlabel("t [s]")
         ax.set_ylabel(f"{axis} [rad]")
+        ax.set_title(f"{axis}: fits on all samples; written: {at.get('delay_model', '')}",
+                     fontsize=9)
         ax.legend(fontsize=8)
+        # Held-out segments: each sample predicted by the model fitted on the other fold.
+        val = at.get("validation", {})
+        hx.plot(a["t"], a["angle"], ".", ms=2, color="0.5", label="measured")
+        hx.plot(a["t"], a["heldout_first_order"], "-", lw=1.2,
+                label=f"first order, held out: fit {pct(val.get('first_order_fit_percent'))}")
+        hx.plot(a["t"], a["heldout_pd_loop"], ":", lw=1.2,
+                label=f"PD loop, held out: fit {pct(val.get('pd_loop_fit_percent'))}")
+        # Samples left out after gaps in the log.
+        t, used = a["t"], a["used"]
+        start = None
+        for i, u in enumerate(used + [1.0]):
+            if u == 0.0 and start is None:
+                start = t[i]
+            elif u != 0.0 and start is not None:
+                hx.axvspan(start, t[i - 1], color="red", alpha=0.15, lw=0)
+                start = None
+        margin = val.get("margin")
+        hx.set_title("held-out segments (NRMSE fit); margin "
+                     + ("-" if margin is None else f"{100 * margin:+.1f} %")
+                     + (" (decisive)" if val.get("decisive") else " (undecided)")
+                     + "; red: left out after a gap", fontsize=9)
+        hx.set_xlabel("t [s]")
+        hx.set_ylabel(f"{axis} [rad]")
+        hx.legend(fontsize=8)
         save(fig, os.path.join(d, f"attitude_{axis}.png"))
 
 

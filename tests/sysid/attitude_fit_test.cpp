@@ -147,5 +147,106 @@ TEST(UnwrapAnglesTest, ContinuousAcrossPiAndFiniteForAbsurdValues) {
   EXPECT_NEAR(UnwrapNear(-3.0, 3.0), -3.0 + 2.0 * M_PI, 1e-12);
 }
 
+TEST(AttitudeFitTest, GapsAreFoundAndTheWindowAfterThemIsLeftOut) {
+  // Given 100 Hz time stamps with 0.30 s missing after t = 2.00 s,
+  std::vector<double> t;
+  for (int k = 0; k < 500; ++k) {
+    const double tk = 0.01 * k;
+    if (tk > 2.005 && tk < 2.295) continue;
+    t.push_back(tk);
+  }
+  // When the gaps are looked for,
+  const std::vector<Gap> gaps = FindGaps(t, 1.5);
+  // Then there is one, from the last sample before to the first after it,
+  ASSERT_EQ(gaps.size(), 1U);
+  EXPECT_NEAR(gaps[0].start, 2.00, 1e-9);
+  EXPECT_NEAR(gaps[0].end, 2.30, 1e-9);
+  EXPECT_NEAR(t[gaps[0].index], 2.30, 1e-9);
+  // and the mask leaves out exactly the samples in (2.00, 2.30 + 0.5].
+  const SampleMask use = GapMask(t, gaps, 0.5);
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    EXPECT_EQ(use[i] == 0, t[i] > 2.0 + 1e-9 && t[i] <= 2.8 + 1e-9) << "t = " << t[i];
+  }
+  EXPECT_THROW(FindGaps(t, 1.0), std::invalid_argument);
+}
+
+TEST(AttitudeFitTest, ReferenceChangeInsideAGapDoesNotBiasTheMaskedFit) {
+  // Given a first-order response with a 15 ms delay whose log loses 0.25 s around the
+  // reference change at 2.4 s (the held reference then changes at the end of the gap),
+  std::vector<double> t_all, ref_all, y_all, t, ref, y;
+  StepLog(0.1, &t_all, &ref_all);
+  SimulateFirstOrder<double>(t_all, ref_all, 0.12, 1.02, 0.0, 0.015, 0.0, &y_all);
+  std::mt19937 rng(9);
+  std::normal_distribution<double> n(0.0, 0.001);
+  for (std::size_t i = 0; i < t_all.size(); ++i) {
+    if (t_all[i] > 2.30 && t_all[i] < 2.55) continue;
+    t.push_back(t_all[i]);
+    ref.push_back(ref_all[i]);
+    y.push_back(y_all[i] + n(rng));
+  }
+  // When it is fitted with the window after the gap left out, and without,
+  FirstOrderFitSettings masked;
+  masked.use = GapMask(t, FindGaps(t, 1.5), 0.5);
+  const FirstOrderFit with_mask = FitFirstOrder(t, ref, y, masked);
+  const FirstOrderFit without = FitFirstOrder(t, ref, y);
+  // Then the masked fit recovers tau and the delay; the unmasked one is further off.
+  EXPECT_NEAR(with_mask.time_constant, 0.12, 0.003);
+  EXPECT_NEAR(with_mask.delay, 0.015, 0.002);
+  EXPECT_GT(std::abs(without.time_constant - 0.12) + std::abs(without.delay - 0.015),
+            2.0 * (std::abs(with_mask.time_constant - 0.12) + std::abs(with_mask.delay - 0.015)));
+}
+
+TEST(AttitudeFitTest, SegmentFoldsAlternateAfterTheFirstSegment) {
+  // Given the step log (reference changes every 1.2 s),
+  std::vector<double> t, ref;
+  StepLog(0.1, &t, &ref);
+  // When it is cut into segments of at least 1 s,
+  int segments = 0;
+  const auto fold = SegmentFolds(t, ref, 1.0, &segments);
+  // Then there are five, the first in both training sets (2), then 1, 0, 1, 0.
+  EXPECT_EQ(segments, 5);
+  const std::array<int, 5> want{2, 1, 0, 1, 0};
+  for (std::size_t i = 0; i < t.size(); ++i) EXPECT_EQ(fold[i], want[i / 300]) << i;
+  // and with 2 s segments the changes 1.2 s apart are merged in pairs.
+  SegmentFolds(t, ref, 2.0, &segments);
+  EXPECT_EQ(segments, 3);
+}
+
+TEST(AttitudeFitTest, HeldOutValidationPrefersTheStructureThatMadeTheData) {
+  // Given a pure dead time + first-order response (40 ms, 0.1 s) and the PD loop with a
+  // 5 ms delay, both logged at 250 Hz with 1 mrad noise over two doublets,
+  std::vector<double> t, ref;
+  const std::array<double, 5> levels{0.0, 1.0, 0.0, -1.0, 0.0};
+  for (int k = 0; k < 2500; ++k) {
+    t.push_back(0.004 * k);
+    ref.push_back(0.1 * levels[static_cast<std::size_t>(k / 250) % 5]);
+  }
+  std::mt19937 rng(11);
+  std::normal_distribution<double> n(0.0, 0.001);
+  std::vector<double> y_fo, y_pd;
+  SimulateFirstOrder<double>(t, ref, 0.10, 1.0, 0.0, 0.040, 0.0, &y_fo);
+  AttitudeLoopSettings st;
+  st.delay = 0.005;
+  SimulateAttitudeLoop<double>(t, ref, 1.0, 420.0, 48.0, 0.0, st, &y_pd);
+  for (auto* y : {&y_fo, &y_pd}) {
+    for (double& v : *y) v += n(rng);
+  }
+  // When both structures are cross-validated on held-out segments,
+  const AttitudeLoopSettings loop;
+  const HeldOutValidation a = ValidateOnHeldOutSegments(t, ref, y_fo, {}, loop, 0.9);
+  const HeldOutValidation b = ValidateOnHeldOutSegments(t, ref, y_pd, {}, loop, 0.9);
+  // Then each fold prefers the true structure by more than 5 % in held-out RMS,
+  EXPECT_TRUE(a.pd_error.empty()) << a.pd_error;
+  EXPECT_TRUE(b.pd_error.empty()) << b.pd_error;
+  for (int f = 0; f < 2; ++f) {
+    EXPECT_GT(a.fold_margin[f], 0.05) << "first-order data, fold " << f;
+    EXPECT_LT(b.fold_margin[f], -0.05) << "PD-loop data, fold " << f;
+  }
+  // and the true structure predicts the held-out segments to better than 95 %.
+  EXPECT_GT(a.first_order_fit_percent, 95.0);
+  EXPECT_GT(b.pd_fit_percent, 95.0);
+  EXPECT_EQ(a.segments, 9);  // ten levels, the fifth and sixth both 0
+}
+
 }  // namespace
 }  // namespace fnmpc::sysid
