@@ -16,7 +16,8 @@ of its own, docs/failure.md: this script judges those runs by the checks below; 
 is a crash), no non-finite command (thrust, roll,
 pitch, yaw) in any CSV row of a vehicle whose controller is alive, and every vehicle either
 landed safely (summary.json `landed_safely`) or is the one the fault downed
-(`faults.downed_vehicles`: kill_controller and motors_off targets), and no vehicle that is not
+(`faults.downed_vehicles`: kill_controller and motors_off targets), no collision in summary.json's `failures` (two true CoMs closer than
+`metrics.collision_distance`, any vehicle), and no vehicle that is not
 downed touched the ground in the NMPC phase (its true CoM within 1.5 cm of the resting height,
 the touchdown test of `fnmpc run`, in a CSV row of phase `nmpc`: a ground strike, which
 summary.json does not count as a touchdown; the speed is the true v_z of the row before). It prints the markdown
@@ -196,6 +197,10 @@ def main():
             if name in c["strikes"]:
                 st["strikes"].append(c["strikes"][name][1])
                 ok = False
+        # A collision (fnmpc run's verdict: true CoMs closer than metrics.collision_distance)
+        # fails the run whoever was involved, a downed vehicle too.
+        collisions = [f["reason"] for f in s.get("failures", []) if f.get("kind") == "collision"]
+        ok = ok and not collisions
         if "motors_off" in fj:
             st["fell"] += 1
             if fj["motors_off"].get("impact_vertical_speed_mps") is not None:
@@ -220,7 +225,8 @@ def main():
                                       for n, v in s["vehicles"].items()) +
                             "".join(f"; {n} struck the ground in flight at t = {ts:.2f} s, "
                                     f"v_z {vz:.2f} m/s" for n, (ts, vz) in c["strikes"].items()
-                                    if n not in downed))
+                                    if n not in downed) +
+                            "".join(f"; {reason}" for reason in collisions))
         print(f"fault-campaign: run {r} ({r + 1}/{a.runs}) {kind} {'ok' if ok else 'FAILED'} "
               f"({time.time() - started:.0f} s)", file=sys.stderr, flush=True)
     print("| fault kind | runs | crashes | non-finite commands | other vehicles landed safely | "
