@@ -12,12 +12,10 @@
 
 int main(int argc, char** argv) {
 #if defined(FNMPC_HAVE_SYSID)
-  // glog (Ceres' logger) complains "Logging before InitGoogleLogging" without this; no log
-  // files are written. Only fatal messages: every outcome Ceres logs below that (e.g. "E ...
-  // Terminating: Residual and Jacobian evaluation failed" when a fit's start is rejected) is
-  // also in its Solver::Summary, which the fits check and report (docs/sysid.md).
+  // glog (Ceres' logger) complains "Logging before InitGoogleLogging" without this; its
+  // messages go to stderr, warnings and above only, and no log files are written.
   FLAGS_logtostderr = true;
-  FLAGS_minloglevel = google::GLOG_FATAL;
+  FLAGS_minloglevel = google::GLOG_WARNING;
   google::InitGoogleLogging(argv[0]);
 #endif
   CLI::App app{"fnmpc: decentralized NMPC for multi-rotor formations"};
