@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -48,6 +49,7 @@ struct SimLinkArgs {
   bool lockstep = false;
   bool scenario_rates = false;
   bool connect = false;
+  std::string bridge;
   double clock_rate = 1.0;
   std::string signing_key;
   long long seed = -1;
@@ -111,6 +113,22 @@ void SendOtherTraffic(link::MavlinkConnection& conn, const EmulatedAutopilot& ap
   const bool on_ground = !ap.armed() || truth.position.z() < sim::World::kRestHeight + 0.05;
   const std::array<std::uint8_t, 2> extended{0, static_cast<std::uint8_t>(on_ground ? 1 : 2)};
   conn.SendOther(245, 130, extended);
+}
+
+/// LOCAL_POSITION_NED of the truth: the state stream PX4's onboard mode sends at 30 Hz
+/// (mavlink_main.cpp), which the onboard side does not use as a measurement but which keeps
+/// its state watchdog fed like a real autopilot's telemetry.
+mavlink::LocalPositionNed LocalPosition(const sim::TrueState& s, std::uint32_t time_boot_ms) {
+  const Vec3 p = mavlink::EnuToNed(s.position), v = mavlink::EnuToNed(s.velocity);
+  mavlink::LocalPositionNed m;
+  m.time_boot_ms = time_boot_ms;
+  m.x = static_cast<float>(p.x());
+  m.y = static_cast<float>(p.y());
+  m.z = static_cast<float>(p.z());
+  m.vx = static_cast<float>(v.x());
+  m.vy = static_cast<float>(v.y());
+  m.vz = static_cast<float>(v.z());
+  return m;
 }
 
 int SimLink(const SimLinkArgs& a) {
@@ -190,15 +208,20 @@ int SimLink(const SimLinkArgs& a) {
     bool all = true;
     for (int i = 0; i < nv; ++i) {
       if (!v[i].connected) {
-        // --connect: the onboard computer listens; our HEARTBEATs tell it where we are.
-        if (a.connect) {
-          v[i].autopilot->Step(since(wait_start), &out);
-          for (const mavlink::Message& m : out) v[i].conn->Send(m);
-          out.Clear();
-        }
         poll(i, 0.01);
       }
       all = all && v[i].connected;
+    }
+    // --connect: the onboard computers listen; our HEARTBEATs and state stream (every
+    // vehicle's, connected or not: a real autopilot's telemetry does not wait) tell them
+    // where we are and keep their watchdogs fed until all are there.
+    if (a.connect) {
+      for (int i = 0; i < nv; ++i) {
+        v[i].autopilot->Step(since(wait_start), &out);
+        out.Push(LocalPosition(world.GetTrueState(i), 0));
+        for (const mavlink::Message& m : out) v[i].conn->Send(m);
+        out.Clear();
+      }
     }
     if (all) break;
     if (since(wait_start) > a.wait) {
@@ -217,7 +240,17 @@ int SimLink(const SimLinkArgs& a) {
   }
   if (!a.quiet) fmt::print(stderr, "[sim-link] all {} vehicles connected\n", nv);
 
+  std::unique_ptr<link::Transport> bridge;
+  if (!a.bridge.empty()) {
+    const link::LinkAddress address = link::ParseLinkAddress(a.bridge);
+    if (address.kind != link::LinkAddress::Kind::kUdpConnect) {
+      throw std::invalid_argument("--bridge '" + a.bridge + "': must be udpout:HOST:PORT");
+    }
+    bridge = link::OpenTransport(address);
+  }
   const double dt = world.physics_dt();
+  const int pose_every = std::max(1, static_cast<int>(std::lround(0.005 / dt)));
+  const int local_position_every = std::max(1, static_cast<int>(std::lround(1.0 / 30.0 / dt)));
   const int steps = static_cast<int>(std::lround(sc.duration / dt));
   const int every = std::max(1, static_cast<int>(std::lround(sc.rti.sample_time / dt)));
   std::vector<Vec3> positions(static_cast<std::size_t>(nv));
@@ -229,7 +262,27 @@ int SimLink(const SimLinkArgs& a) {
   long measurements_sent = 0;
   for (int step = 0; step <= steps && g_stop_signal == 0; ++step) {
     t = world.time();
+    if (step % local_position_every == 0) {
+      for (int i = 0; i < nv; ++i) {
+        v[i].conn->Send(LocalPosition(world.GetTrueState(i), static_cast<std::uint32_t>(std::lround(
+                                                                 t * a.clock_rate * 1000.0))));
+      }
+    }
+    if (bridge && step % pose_every == 0) {
+      // The truth for `fnmpc bridge` (its motion capture and relative sensor), 200 Hz.
+      std::string poses;
+      for (int i = 0; i < nv; ++i) {
+        const sim::TrueState s = world.GetTrueState(i);
+        poses += fmt::format("POSE {} {:.4f} {:.5f} {:.5f} {:.5f} {:.6f} {:.6f} {:.6f}\n",
+                             sc.vehicles[i].name, t, s.position.x(), s.position.y(), s.position.z(),
+                             s.euler.x(), s.euler.y(), s.euler.z());
+      }
+      bridge->Write(std::span<const std::uint8_t>(
+          reinterpret_cast<const std::uint8_t*>(poses.data()), poses.size()));
+    }
     while (world.PopMeasurement(&m)) {
+      // With a bridge, motion capture and relative observations are its business.
+      if (bridge && (m.kind == SensorKind::kMocapPose || m.kind == SensorKind::kRelative)) continue;
       m.stamp *= a.clock_rate;  // the autopilot's clock
       if (m.vehicle < 0 || m.vehicle >= nv || !autopilot::ToMessage(m, &msg)) continue;
       // The autopilot's own streams at its rates (decimated from the simulator's samples).
@@ -430,6 +483,9 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
   sub->add_flag("--connect", a->connect,
                 "vehicle i sends to udpout:HOST:PORT+i (`fnmpc fly --link udp:...` listens) "
                 "instead of listening there");
+  sub->add_option("--bridge", a->bridge,
+                  "udpout:HOST:PORT of `fnmpc bridge --poses`: send it the true poses (200 Hz) "
+                  "and leave motion capture and relative observations to it");
   sub->add_flag("--scenario-rates", a->scenario_rates,
                 "send IMU, compass and battery at the scenario's sensor rates instead of the "
                 "emulated autopilot's stream rates (PX4: HIGHRES_IMU 50 Hz unless asked for "
