@@ -223,6 +223,24 @@ TEST_F(RoundTripTest, MissingFilesFailOnlyTheirStages) {
   EXPECT_NE(Slurp(c / "sysid2.log").find("pendulum_z.csv"), std::string::npos);
 }
 
+TEST_F(RoundTripTest, MissingFlightIsNamedAndACleanCampaignExitsZero) {
+  // Given the clean synthetic campaign whose campaign file names a flight that is gone,
+  ASSERT_EQ(synth_rc_, 0);
+  const fs::path c = CopyCampaign(dir_ / "c", dir_ / "flightgone");
+  fs::remove(c / "flight.csv");
+  // When identified,
+  const int rc = RunApp("sysid '" + (c / "campaign.yaml").string() + "' -o '" +
+                            (c / "vehicle.yaml").string() + "' --no-plots",
+                        c / "sysid.log");
+  // Then it exits 0 (every stage ran, every check passed), the warning names the file, and
+  // no solver (glog) line is in the output.
+  EXPECT_EQ(WEXITSTATUS(rc), 0) << Slurp(c / "sysid.log");
+  const std::string log = Slurp(c / "sysid.log");
+  EXPECT_NE(log.find("flight.csv does not exist"), std::string::npos) << log;
+  EXPECT_EQ(log.find("trust_region_minimizer"), std::string::npos) << log;
+  EXPECT_NO_THROW(config::LoadVehicleFile((c / "vehicle.yaml").string()));
+}
+
 TEST_F(RoundTripTest, OutputPathReachesThePlotterWithoutAShell) {
   // Given an output name with quotes and a command substitution,
   ASSERT_EQ(synth_rc_, 0);
