@@ -17,30 +17,12 @@ set -euo pipefail
 fnmpc=$1
 src=$2
 autopilot=$3
-work=$(mktemp -d)
-pids=()
-cleanup() {
-  for p in "${pids[@]}"; do kill -9 "$p" 2>/dev/null || true; done
-  rm -rf "$work"
-}
-trap cleanup EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+source "$(dirname "$0")/link_test_common.sh"
 base=$((46000 + ($$ % 2000) * 10))
 poses=$((base + 5))
 vehicles="leader follower1 follower2"
 
-/usr/bin/python3 - "$src/ros/fnmpc_ros/test/triangle_20s.yaml" "$work/scenario.yaml" <<'PY'
-import os, sys, yaml
-src, dst = sys.argv[1:]
-s = yaml.safe_load(open(src))
-for key in ("vehicle_file", "sensors_file"):
-    s[key] = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(src)), s[key]))
-s["phases"]["takeoff_time"] += 4.0
-s["leader"]["start_time"] += 4.0
-s["phases"]["landing_time"] += 4.0
-s["duration"] = 28.0
-yaml.safe_dump(s, open(dst, "w"), sort_keys=False)
-PY
+write_short_scenario "$src" triangle "$work/scenario.yaml"
 
 "$fnmpc" run "$work/scenario.yaml" -o "$work/inproc" --quiet > /dev/null
 "$fnmpc" bridge "$work/scenario.yaml" --poses "udp:127.0.0.1:$poses" \

@@ -11,31 +11,10 @@ set -euo pipefail
 fnmpc=$1
 src=$2
 autopilot=$3
-work=$(mktemp -d)
-pids=()
-cleanup() {
-  for p in "${pids[@]}"; do kill -9 "$p" 2>/dev/null || true; done
-  rm -rf "$work"
-}
-trap cleanup EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+source "$(dirname "$0")/link_test_common.sh"
 port=$((44000 + ($$ % 2000) * 10))
 
-/usr/bin/python3 - "$src/config/scenarios/single.yaml" "$work/scenario.yaml" <<'PY'
-import os, sys, yaml
-src, dst = sys.argv[1:]
-s = yaml.safe_load(open(src))
-for key in ("vehicle_file", "sensors_file"):
-    s[key] = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(src)), s[key]))
-s["phases"]["takeoff_time"] = 5.0
-s["leader"]["start_time"] = 9.0
-s["leader"]["waypoints"] = [[1.0, 0.0, 0.5], [0.0, 0.0, 0.0]]
-s["leader"]["leg_duration"] = 2.0
-s["leader"]["hold_duration"] = 1.0
-s["phases"]["landing_time"] = 15.0
-s["duration"] = 21.0
-yaml.safe_dump(s, open(dst, "w"), sort_keys=False)
-PY
+write_short_scenario "$src" single "$work/scenario.yaml"
 
 "$fnmpc" fly leader "$work/scenario.yaml" --link "udp:127.0.0.1:$port" --autopilot "$autopilot" \
   -o "$work/fly" --quiet 2> "$work/fly.err" &
