@@ -165,7 +165,7 @@ int Fly(const FlyArgs& a) {
   bool lockstep_lost = false;
   while (g_stop_signal == 0) {
     if (!options.autopilot_clock) {
-      link.Poll(std::max(0.0, next - local()), local());
+      link.Poll(std::max(0.0, next - local()), local);  // stamped at receipt
       t = local();
       if (t < next) continue;
       step(t);

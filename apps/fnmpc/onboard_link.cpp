@@ -97,9 +97,13 @@ OnboardLink::OnboardLink(formation::ControllerConfig controller, int vehicle,
 OnboardLink::~OnboardLink() = default;
 
 bool OnboardLink::Poll(double timeout, double now) {
+  return Poll(timeout, [now] { return now; });
+}
+
+bool OnboardLink::Poll(double timeout, const std::function<double()>& clock) {
   bool tick = false;
   impl_->conn.Poll(timeout, [&](const mavlink::Frame& f) {
-    double at = now;
+    double at = clock();
     if (impl_->autopilot_clock) {
       const double t = impl_->onboard.tick_time();
       at = std::isfinite(t) ? t : 0.0;

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -38,6 +39,9 @@ class OnboardLink {
   /// the caller's clock; with the autopilot's clock the last tick's time is used). Returns
   /// true when a control tick arrived (autopilot clock): call Step(tick_time()).
   bool Poll(double timeout, double now);
+  /// The same, each frame stamped with `clock()` when it is handed over (after the wait, not
+  /// before it: a frame that arrives during the wait gets its arrival time).
+  bool Poll(double timeout, const std::function<double()>& clock);
   [[nodiscard]] double tick_time() const;
   [[nodiscard]] long ticks() const;
   /// Frames received from the vehicle's own autopilot (its system id).
