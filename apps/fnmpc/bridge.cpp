@@ -38,7 +38,7 @@ namespace {
 struct BridgeArgs {
   std::string scenario;
   std::string poses = "udp:127.0.0.1:14700";
-  std::string to;
+  std::vector<std::string> to;
   int component = 197;
   long long seed = -1;
   double idle_timeout = 5.0;
@@ -91,6 +91,56 @@ std::string ParsePoseLine(const std::string& line, const config::ScenarioConfig&
   return "";
 }
 
+/// Each vehicle's onboard computer: one `udpout:HOST:PORT` (vehicle i at PORT + i, the
+/// vehicles on one host), or `NAME=udpout:HOST:PORT` for every vehicle (one host each).
+std::vector<link::LinkAddress> VehicleAddresses(const std::vector<std::string>& to,
+                                                const config::ScenarioConfig& sc) {
+  const int nv = static_cast<int>(sc.vehicles.size());
+  std::vector<link::LinkAddress> out(static_cast<std::size_t>(nv));
+  const auto udpout = [](const std::string& text) {
+    link::LinkAddress address = link::ParseLinkAddress(text);
+    if (address.kind != link::LinkAddress::Kind::kUdpConnect) {
+      throw std::invalid_argument("--to '" + text + "': must be udpout:HOST:PORT");
+    }
+    return address;
+  };
+  if (to.size() == 1 && to[0].find('=') == std::string::npos) {
+    const link::LinkAddress first = udpout(to[0]);
+    if (first.port + nv - 1 > 65535) throw std::invalid_argument("--to: the ports exceed 65535");
+    for (int i = 0; i < nv; ++i) {
+      out[i] = first;
+      out[i].port = first.port + i;
+      out[i].text = fmt::format("udpout:{}:{}", first.host, out[i].port);
+    }
+    return out;
+  }
+  std::vector<bool> given(static_cast<std::size_t>(nv), false);
+  for (const std::string& entry : to) {
+    const std::size_t eq = entry.find('=');
+    if (eq == std::string::npos) {
+      throw std::invalid_argument("--to '" + entry +
+                                  "': with several addresses each is NAME=udpout:HOST:PORT");
+    }
+    const std::string name = entry.substr(0, eq);
+    int i = -1;
+    for (int k = 0; k < nv; ++k) {
+      if (sc.vehicles[k].name == name) i = k;
+    }
+    if (i < 0) {
+      throw std::invalid_argument("--to '" + entry + "': no vehicle '" + name + "' in " + sc.name);
+    }
+    if (given[i]) throw std::invalid_argument("--to: vehicle '" + name + "' given twice");
+    out[i] = udpout(entry.substr(eq + 1));
+    given[i] = true;
+  }
+  std::string missing;
+  for (int i = 0; i < nv; ++i) {
+    if (!given[i]) missing += (missing.empty() ? "" : ", ") + sc.vehicles[i].name;
+  }
+  if (!missing.empty()) throw std::invalid_argument("--to: no address for " + missing);
+  return out;
+}
+
 /// Whether a sample of a sensor at `rate` is due at `stamp`; moves `next` on.
 bool Due(double rate, double stamp, double* next) {
   if (!(rate > 0.0) || stamp < *next - 1e-9) return false;
@@ -102,12 +152,7 @@ bool Due(double rate, double stamp, double* next) {
 int Bridge(const BridgeArgs& a) {
   const config::ScenarioConfig sc = config::LoadScenarioFile(a.scenario);
   const int nv = static_cast<int>(sc.vehicles.size());
-  const link::LinkAddress to = link::ParseLinkAddress(a.to);
-  if (to.kind != link::LinkAddress::Kind::kUdpConnect) {
-    throw std::invalid_argument("--to '" + a.to +
-                                "': must be udpout:HOST:PORT (vehicle i: PORT + i)");
-  }
-  if (to.port + nv - 1 > 65535) throw std::invalid_argument("--to: the ports exceed 65535");
+  const std::vector<link::LinkAddress> to = VehicleAddresses(a.to, sc);
   const link::LinkAddress poses = link::ParseLinkAddress(a.poses);
   if (poses.kind != link::LinkAddress::Kind::kUdpListen) {
     throw std::invalid_argument("--poses '" + a.poses + "': must be udp:HOST:PORT (listen)");
@@ -116,17 +161,19 @@ int Bridge(const BridgeArgs& a) {
   const std::uint64_t seed = a.seed >= 0 ? static_cast<std::uint64_t>(a.seed) : sc.seed;
   std::vector<BridgedVehicle> v(static_cast<std::size_t>(nv));
   for (int i = 0; i < nv; ++i) {
-    link::LinkAddress out = to;
-    out.port = to.port + i;
-    out.text = fmt::format("udpout:{}:{}", to.host, out.port);
-    v[i].conn = std::make_unique<link::MavlinkConnection>(
-        link::OpenTransport(out), autopilot::SystemIdOf(i), static_cast<std::uint8_t>(a.component));
+    v[i].conn = std::make_unique<link::MavlinkConnection>(link::OpenTransport(to[i]),
+                                                          autopilot::SystemIdOf(i),
+                                                          static_cast<std::uint8_t>(a.component));
     if (!a.signing_key.empty()) v[i].conn->EnableSigning(link::ReadSigningKey(a.signing_key), 0);
     v[i].rng.seed(seed * 1000003ULL + static_cast<std::uint64_t>(i) + 17);
   }
   if (!a.quiet) {
-    fmt::print(stderr, "[bridge] {}: poses on {}, {} vehicles to {}..{} as component {}\n", sc.name,
-               a.poses, nv, to.port, to.port + nv - 1, a.component);
+    fmt::print(stderr, "[bridge] {}: poses on {}, {} vehicles as component {}\n", sc.name, a.poses,
+               nv, a.component);
+    for (int i = 0; i < nv; ++i) {
+      fmt::print(stderr, "[bridge]   {} (system {}) -> {}\n", sc.vehicles[i].name,
+                 autopilot::SystemIdOf(i), to[i].text);
+    }
   }
   StopSignalScope stop_scope;
   using Clock = std::chrono::steady_clock;
@@ -265,7 +312,8 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
                   "<yaw>' lines (ENU, rad)")
       ->capture_default_str();
   sub->add_option("--to", a->to,
-                  "udpout:HOST:PORT of the first vehicle's onboard computer; vehicle i: PORT + i")
+                  "udpout:HOST:PORT of the first vehicle's onboard computer (vehicle i: PORT + "
+                  "i), or NAME=udpout:HOST:PORT for every vehicle")
       ->required();
   sub->add_option("--component", a->component, "our MAVLink component id on every vehicle")
       ->check(CLI::Range(1, 255))

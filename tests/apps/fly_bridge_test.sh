@@ -25,8 +25,18 @@ vehicles="leader follower1 follower2"
 write_short_scenario "$src" triangle "$work/scenario.yaml"
 
 "$fnmpc" run "$work/scenario.yaml" -o "$work/inproc" --quiet > /dev/null
+# Bad addresses are refused, naming what is wrong (exit 1).
+for bad in "--to udp:127.0.0.1:$base" "--to leader=udpout:127.0.0.1:$base" \
+  "--to bob=udpout:127.0.0.1:$base"; do
+  brc=0
+  "$fnmpc" bridge "$work/scenario.yaml" $bad --quiet 2> "$work/bad.err" || brc=$?
+  [ "$brc" -eq 1 ] && grep -q -- "--to" "$work/bad.err" || fail "bridge $bad: exit $brc"
+done
+# One address per vehicle (a lab's vehicles each have their own host).
 "$fnmpc" bridge "$work/scenario.yaml" --poses "udp:127.0.0.1:$poses" \
-  --to "udpout:127.0.0.1:$base" -o "$work/bridge" --quiet 2> "$work/bridge.err" &
+  --to "leader=udpout:127.0.0.1:$base" --to "follower1=udpout:127.0.0.1:$((base + 1))" \
+  --to "follower2=udpout:127.0.0.1:$((base + 2))" -o "$work/bridge" --quiet \
+  2> "$work/bridge.err" &
 bridge=$!
 pids+=("$bridge")
 i=0
