@@ -20,9 +20,17 @@ if [[ $aarch64 != ON && $aarch64 != OFF ]]; then
   echo "test.sh: FNMPC_TEST_AARCH64 must be ON or OFF, not '$aarch64'" >&2
   exit 2
 fi
+# Each step's wall time, printed as it ends (docs/benchmarks.md "Test suite" keeps the budget).
+suite_start=$SECONDS
+step_start=$SECONDS
+step_done() {
+  echo "test.sh: $1 took $((SECONDS - step_start)) s (suite so far $(((SECONDS - suite_start) / 60)) min)"
+  step_start=$SECONDS
+}
 deps=(--with-ros)
 if [[ $aarch64 == ON ]]; then deps+=(--with-aarch64); fi
 bash scripts/install-deps.sh "${deps[@]}"
+step_done "install-deps"
 build=${FNMPC_TEST_BUILD_DIR:-build-test}
 # -O1 -g1: the sanitizers' recommended optimisation and line tables only (enough for their
 # stack traces); the heavy solver translation units compile in about half the time of
@@ -31,8 +39,10 @@ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DFNMPC_SANITIZE=ON \
   -DFNMPC_BUILD_BENCH=OFF -DFNMPC_WITH_ROS=ON
 cmake --build "$build" -j"$(nproc)"
+step_done "sanitizer build"
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 (cd "$build" && ctest --output-on-failure -j"$(nproc)" "$@")
+step_done "sanitizer tests"
 unset ASAN_OPTIONS UBSAN_OPTIONS
 # The solver's unit tests once more in a Debug build: FNMPC_ASSERT and Eigen's own checks
 # (index ranges, sizes, aliasing) are compiled out of the build above (NDEBUG). Only the
@@ -44,9 +54,12 @@ cmake -S . -B "$debug" -G Ninja -DCMAKE_BUILD_TYPE=Debug -DFNMPC_BUILD_BENCH=OFF
   -DFNMPC_WITH_IPOPT=OFF -DFNMPC_WITH_PYTHON=OFF -DFNMPC_WITH_REPLAY=OFF
 cmake --build "$debug" -j"$(nproc)" --target core_test qp_test ocp_test problem_contract_test
 (cd "$debug" && ctest --output-on-failure -j"$(nproc)" -E "_NOT_BUILT|install_and_examples")
+step_done "debug build and tests"
 # The onboard tests cross-built for aarch64 (Release, what flies) under qemu-aarch64: the
 # solver, estimator, MAVLink, link and autopilot tests and tests/onboard (cross_arch_test
 # compares the benchmark closed loops with the x86-64 reference, docs/onboard.md).
 if [[ $aarch64 == ON ]]; then
   bash scripts/build-aarch64.sh --no-install --test
+  step_done "aarch64 build and tests"
 fi
+echo "test.sh: whole suite $(((SECONDS - suite_start) / 60)) min"
