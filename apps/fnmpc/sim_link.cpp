@@ -17,6 +17,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -129,6 +130,15 @@ mavlink::LocalPositionNed LocalPosition(const sim::TrueState& s, std::uint32_t t
   m.vy = static_cast<float>(v.y());
   m.vz = static_cast<float>(v.z());
   return m;
+}
+
+/// STATUSTEXT (253, CRC_EXTRA 83; severity, text[50], extensions id and chunk_seq): a message
+/// for the operator, as autopilots send with refusals. Not decoded by fnmpc (an unknown id).
+void SendStatusText(link::MavlinkConnection& conn, std::uint8_t severity, std::string_view text) {
+  std::array<std::uint8_t, 54> payload{};
+  payload[0] = severity;
+  std::copy_n(text.begin(), std::min<std::size_t>(text.size(), 50), payload.begin() + 1);
+  conn.SendOther(253, 83, payload);
 }
 
 int SimLink(const SimLinkArgs& a) {
@@ -365,6 +375,11 @@ int SimLink(const SimLinkArgs& a) {
           fmt::print(stderr, "\n[sim-link] t = {:.2f} s: {}: {} (mode {}, {})\n", ev_time,
                      sc.vehicles[i].name, autopilot::ToString(ev), autopilot::ToString(ap.mode()),
                      ap.armed() ? "armed" : "disarmed");
+        }
+        if (ev == autopilot::EmulatorEvent::kDisarmRefused &&
+            es.autopilot == autopilot::AutopilotKind::kPx4) {
+          // Commander's message with the refusal (mavlink_log_critical: MAV_SEVERITY_CRITICAL).
+          SendStatusText(*L.conn, 2, "Disarming denied: not landed");
         }
         if (ap.armed() && std::isnan(L.armed_time)) L.armed_time = t;
         const double altitude = truth[i].position.z() - sim::World::kRestHeight;
