@@ -28,8 +28,10 @@ void Parser::SetTimestamp(std::uint64_t timestamp) {
 
 void Parser::NoteUnknown(std::size_t frame_length) {
   const std::uint64_t at = Offset();
-  if (run_active_ && at == run_end_) {
+  const std::uint8_t sequence = buf_[4], system = buf_[5], component = buf_[6];
+  if (run_active_ && at == run_end_ && Follows(system, component, sequence)) {
     run_end_ = at + frame_length;  // the next frame of the run
+    run_sequence_ = sequence;
     ++run_frames_;
     return;
   }
@@ -38,13 +40,23 @@ void Parser::NoteUnknown(std::size_t frame_length) {
   run_start_ = at;
   run_end_ = at + frame_length;
   run_frames_ = 1;
+  run_system_ = system;
+  run_component_ = component;
+  run_sequence_ = sequence;
   run_before_ = counters_;
 }
 
-void Parser::ConfirmUnknownRun() {
+bool Parser::Follows(std::uint8_t system, std::uint8_t component, std::uint8_t sequence) const {
+  return system == run_system_ && component == run_component_ &&
+         sequence == static_cast<std::uint8_t>(run_sequence_ + 1);
+}
+
+void Parser::ConfirmUnknownRun(bool datagram_end) {
   if (!run_active_) return;
   run_active_ = false;
   if (Offset() != run_end_) return;  // a valid frame elsewhere: the run was garbage
+  // The next frame of the same sender (its sequence number), or the end of its datagram.
+  if (!datagram_end && !Follows(buf_[5], buf_[6], buf_[4])) return;
   // Every byte of the run was discarded (a valid frame inside would have ended it) and every
   // failure since its start was a false start inside it.
   const std::uint64_t bytes = run_end_ - run_start_;
@@ -221,7 +233,7 @@ bool Parser::CompleteOk() {
   UnpackPayload(info_->id, std::span<const std::uint8_t>(buf_.data() + kHeaderLength, length),
                 &frame_.message);
   frame_.bytes = std::span<const std::uint8_t>(buf_.data(), expected_);
-  ConfirmUnknownRun();
+  ConfirmUnknownRun(false);
   ++counters_.frames_ok;
   counters_.bytes_in_frames += expected_;
   emitted_ = true;

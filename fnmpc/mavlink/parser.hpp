@@ -37,9 +37,11 @@ struct Frame {
 /// Unknown message ids. A real autopilot sends many messages this codec does not decode.
 /// Their checksum cannot be verified (it needs the message's CRC_EXTRA), so they are never
 /// trusted on their own: the parser resynchronises through them as through garbage, and every
-/// valid frame inside survives. But when a run of unknown-id headers, each starting exactly
-/// where the one before ends by its declared length, is followed by a valid frame starting
-/// exactly at the run's end, the run was real traffic: its bytes move from bytes_discarded to
+/// valid frame inside survives. But when a run of unknown-id headers of one sender (system
+/// and component), each starting exactly where the one before ends by its declared length
+/// and numbered one after it (the sender's sequence), is followed by a valid frame of that
+/// sender with the next sequence number starting exactly at the run's end, the run was real
+/// traffic: its bytes move from bytes_discarded to
 /// bytes_in_unknown_frames, it counts in unknown_frames, and the failed candidates of false
 /// start bytes inside it are taken back from the failure counters. A healthy stream thus shows
 /// zero discarded bytes and zero failures (its last unknown frames stay counted as discarded
@@ -119,7 +121,7 @@ class Parser {
   /// The sender's unit of bytes (a UDP datagram) ends here: a run of unknown frames that ends
   /// exactly here, with nothing buffered, is confirmed as if a valid frame followed.
   void EndOfDatagram() {
-    if (run_active_ && end_ == 0 && counters_.bytes_received == run_end_) ConfirmUnknownRun();
+    if (run_active_ && end_ == 0 && counters_.bytes_received == run_end_) ConfirmUnknownRun(true);
   }
 
   /// Drops the buffered bytes of an incomplete frame (counted as discarded), e.g. after a
@@ -161,13 +163,18 @@ class Parser {
   [[nodiscard]] std::uint64_t Offset() const { return counters_.bytes_received - end_; }
   // An unknown-id header at buf_[0] (before its failure is counted).
   void NoteUnknown(std::size_t frame_length);
-  // A valid frame at buf_[0]: confirms the run of unknown frames that ends there.
-  void ConfirmUnknownRun();
+  // A valid frame at buf_[0] (or the datagram's end): confirms the run of unknown frames
+  // that ends there.
+  void ConfirmUnknownRun(bool datagram_end);
+  // The frame (system, component, sequence) is the next one of the run's sender.
+  [[nodiscard]] bool Follows(std::uint8_t system, std::uint8_t component,
+                             std::uint8_t sequence) const;
 
   // The current run of unknown-id frames (see ParserCounters): stream offsets, frames, and
   // the counters as they were before its first header.
   bool run_active_ = false;
   std::uint64_t run_start_ = 0, run_end_ = 0, run_frames_ = 0;
+  std::uint8_t run_system_ = 0, run_component_ = 0, run_sequence_ = 0;  // of its last frame
   ParserCounters run_before_;
 
   std::array<std::uint8_t, kMaxFrameLength> buf_{};  // candidate, then unprocessed bytes

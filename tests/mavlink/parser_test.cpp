@@ -193,7 +193,7 @@ TEST(ParserTest, RejectsUnknownIdsBadLengthsAndFlagsAndKeepsGoing) {
   // with 10 payload bytes (max 9), an unknown incompatibility flag, and a wrong checksum
   Encoder encoder(1, 1);
   const Bytes good = EncodeToVector(&encoder, Heartbeat{.custom_mode = 7, .mavlink_version = 3});
-  const Bytes unknown = RawFrame(24, 24, Bytes(30, 0x11));
+  const Bytes unknown = RawFrame(24, 24, Bytes(30, 0x11), 255);  // the frame before `good`
   const Bytes too_long = RawFrame(Heartbeat::kId, Heartbeat::kCrcExtra, Bytes(10, 0x22));
   Bytes flagged = good;
   flagged[2] = 0x02;
@@ -228,10 +228,13 @@ TEST(ParserTest, ARunOfUnknownFramesWithFalseStartsInsideIsSkippedWithoutFailure
   Bytes tricky_payload(40, 0x00);
   tricky_payload[5] = kStartByte;
   tricky_payload[6] = 9;  // length 9, then zero flags and id 0 (HEARTBEAT)
-  const Bytes a = RawFrame(33, 104, Bytes(28, 0x31));  // GLOBAL_POSITION_INT-sized
-  const Bytes b = RawFrame(245, 130, tricky_payload);
-  const Bytes c_frame = RawFrame(163, 163, Bytes(42, 0x07));
-  const Bytes stream = Concat({good, a, b, c_frame, good});
+  // numbered on after `good` (sequence 0) by the same sender, as a real link numbers them
+  const Bytes a = RawFrame(33, 104, Bytes(28, 0x31), 1);  // GLOBAL_POSITION_INT-sized
+  const Bytes b = RawFrame(245, 130, tricky_payload, 2);
+  const Bytes c_frame = RawFrame(163, 163, Bytes(42, 0x07), 3);
+  encoder.set_sequence(4);
+  const Bytes next = EncodeToVector(&encoder, Heartbeat{.custom_mode = 3, .mavlink_version = 3});
+  const Bytes stream = Concat({good, a, b, c_frame, next});
   // When it is parsed
   Parser parser;
   const auto got = ParseAll(&parser, stream);
@@ -246,6 +249,30 @@ TEST(ParserTest, ARunOfUnknownFramesWithFalseStartsInsideIsSkippedWithoutFailure
   EXPECT_EQ(c.crc_errors, 0U);
   EXPECT_EQ(c.bad_lengths, 0U);
   ExpectConservation(parser);
+}
+
+TEST(ParserTest, AnUnknownRunOutOfSequenceIsNotConfirmed) {
+  // Given unknown frames that line up by length but not by sequence (or sender) before the
+  // valid frame: what garbage could look like by chance
+  Encoder encoder(1, 1);
+  const Bytes good = EncodeToVector(&encoder, Heartbeat{.custom_mode = 3, .mavlink_version = 3});
+  const Bytes a = RawFrame(33, 104, Bytes(28, 0x31), 1);
+  const Bytes gap = RawFrame(245, 130, Bytes{0, 1}, 7);  // not 2
+  encoder.set_sequence(8);
+  const Bytes next = EncodeToVector(&encoder, Heartbeat{.custom_mode = 3, .mavlink_version = 3});
+  encoder.set_sequence(1);  // the valid frame does not follow the run's last (7)
+  const Bytes wrong = EncodeToVector(&encoder, Heartbeat{.custom_mode = 3, .mavlink_version = 3});
+  Parser p1, p2;
+  EXPECT_EQ(ParseAll(&p1, Concat({good, a, gap, next})).size(), 2U);
+  EXPECT_EQ(ParseAll(&p2, Concat({good, a, gap, wrong})).size(), 2U);
+  // Then the second frame starts a run of its own (confirmed by `next`), the first one stays
+  // discarded; with `wrong` neither is confirmed
+  EXPECT_EQ(p1.counters().unknown_frames, 1U);
+  EXPECT_EQ(p1.counters().bytes_discarded, a.size());
+  EXPECT_EQ(p2.counters().unknown_frames, 0U);
+  EXPECT_EQ(p2.counters().bytes_discarded, a.size() + gap.size());
+  ExpectConservation(p1);
+  ExpectConservation(p2);
 }
 
 TEST(ParserTest, UnknownFramesEndingTheirDatagramAreConfirmedByItsEnd) {
