@@ -15,9 +15,11 @@ def test_load_scenario(triangle):
     names = [n for n, _ in sc.vehicles[1].neighbours]
     assert names == ["leader", "follower2"]
     np.testing.assert_allclose(sc.vehicles[1].neighbours[0][1], [2.0, -1.5, 0.0])
-    short = sc.shortened(20.0)
-    assert short.duration == pytest.approx(20.0)
+    short = sc.shortened(26.0)  # the triangle keeps its 9 s landing allowance: more than 21 s
+    assert short.duration == pytest.approx(26.0)
     assert sc.duration == pytest.approx(82.0)  # the original is unchanged
+    with pytest.raises(fnmpc.ConfigError, match="landing allowance"):
+        sc.shortened(20.0)
 
 
 def test_load_vehicle(vehicle_file):

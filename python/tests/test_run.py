@@ -107,7 +107,7 @@ def test_logs_match_cli(runs):
 
 
 def test_run_with_scenario_object_and_temp_folder(triangle):
-    sc = fnmpc.load_scenario(triangle).shortened(20.0)
+    sc = fnmpc.load_scenario(triangle).shortened(26.0)
     result = fnmpc.run(sc, runs=2, seed=5)
     assert result.dir is None
     assert result.summary["runs"] == 2

@@ -21,6 +21,7 @@ one after the other may have none; the original must have them), and the origina
 exit 0. Prints one row per variant.
 """
 import csv
+import concurrent.futures
 import json
 import os
 import random
@@ -133,6 +134,7 @@ def main():
             variants[f"noise seed {seed}"] = read_rows(os.path.join(d, "attitude_steps.csv"))[1]
     choices = {a: {} for a in AXES}
     failed = False
+    jobs = {}
     for name, vrows in variants.items():
         tag = name.replace(" ", "_")
         steps = os.path.join(work, f"steps_{tag}.csv")
@@ -140,9 +142,17 @@ def main():
         yaml = os.path.join(work, f"campaign_{tag}.yaml")
         campaign_with(os.path.join(extra[name], "campaign.yaml") if name in extra else src_yaml,
                       steps, yaml)
-        out = os.path.join(work, f"vehicle_{tag}.yaml")
-        r = subprocess.run([fnmpc, "sysid", yaml, "-o", out, "--no-plots"],
-                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        jobs[name] = (yaml, os.path.join(work, f"vehicle_{tag}.yaml"))
+    # Two identifications at a time (each is one thread): the variants are independent.
+    with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
+        results = dict(zip(jobs, pool.map(
+            lambda job: subprocess.run([fnmpc, "sysid", job[0], "-o", job[1], "--no-plots"],
+                                       stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                       text=True),
+            jobs.values())))
+    for name in variants:
+        out = jobs[name][1]
+        r = results[name]
         with open(out + ".report/summary.json") as f:
             s = json.load(f)
         row = [f"{name:<18} exit {r.returncode}"]
