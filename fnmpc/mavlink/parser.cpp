@@ -74,6 +74,16 @@ void Parser::ConfirmUnknownRun(bool datagram_end) {
   c.timestamps_rejected = run_before_.timestamps_rejected;
 }
 
+void Parser::EndOfDatagram() {
+  if (!run_active_ || counters_.bytes_received != run_end_) return;
+  if (emitted_) return;  // a frame was handed out after the run began: not a run's end
+  if (end_ > 0) {
+    Discard(end_);
+    pos_ = 0;
+  }
+  ConfirmUnknownRun(true);
+}
+
 void Parser::Reset() {
   run_active_ = false;
   if (emitted_) {

@@ -118,11 +118,10 @@ class Parser {
     for (const std::uint8_t b : bytes) Parse(b, on_frame);
   }
 
-  /// The sender's unit of bytes (a UDP datagram) ends here: a run of unknown frames that ends
-  /// exactly here, with nothing buffered, is confirmed as if a valid frame followed.
-  void EndOfDatagram() {
-    if (run_active_ && end_ == 0 && counters_.bytes_received == run_end_) ConfirmUnknownRun(true);
-  }
+  /// The sender's unit of bytes (a UDP datagram, which holds whole frames) ends here: a run
+  /// of unknown frames that ends exactly here is confirmed as if a valid frame followed, and
+  /// a false start still buffered inside its last frame is dropped with it.
+  void EndOfDatagram();
 
   /// Drops the buffered bytes of an incomplete frame (counted as discarded), e.g. after a
   /// link was reopened.

@@ -18,7 +18,7 @@ fnmpc=$1
 src=$2
 autopilot=$3
 source "$(dirname "$0")/link_test_common.sh"
-base=$((46000 + ($$ % 2000) * 10))
+base=$((36000 + ($$ % 2000) * 10))
 poses=$((base + 5))
 vehicles="leader follower1 follower2"
 
@@ -48,11 +48,14 @@ for v in $vehicles; do
   pids+=("$!")
   i=$((i + 1))
 done
-# A malformed pose line first: counted and named, nothing else changes.
+# A malformed pose line first (sent for 2 s: the bridge may still be starting): counted and
+# named, nothing else changes.
 /usr/bin/python3 -c "
-import socket, sys
-socket.socket(socket.AF_INET, socket.SOCK_DGRAM).sendto(
-    b'POSE follower1 0.0 1.0 2.0 nan 0 0 0\n', ('127.0.0.1', int(sys.argv[1])))" "$poses"
+import socket, sys, time
+s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+for _ in range(10):
+    s.sendto(b'POSE follower1 0.0 1.0 2.0 nan 0 0 0\n', ('127.0.0.1', int(sys.argv[1])))
+    time.sleep(0.2)" "$poses"
 rc=0
 "$fnmpc" sim-link "$work/scenario.yaml" --autopilot "$autopilot" --connect --port "$base" \
   --bridge "udpout:127.0.0.1:$poses" -o "$work/link" --quiet > /dev/null \
@@ -76,7 +79,7 @@ inproc = json.load(open(f"{work}/inproc/summary.json"))
 link = json.load(open(f"{work}/link/summary.json"))
 bridge = json.load(open(f"{work}/bridge/bridge-summary.json"))
 assert link["every_vehicle_armed_flew_and_landed"], link["vehicles"]
-assert bridge["bad_lines"] == 1 and "'z' is not a finite number" in bridge["first_bad_line"], bridge
+assert bridge["bad_lines"] >= 1 and "'z' is not a finite number" in bridge["first_bad_line"], bridge
 for v in vehicles:
     fly = json.load(open(f"{work}/fly/{v}/fly-summary.json"))
     assert fly["stop"] == "disarmed", (v, fly["stop"], fly["session_reason"])

@@ -285,6 +285,20 @@ TEST(ParserTest, UnknownFramesEndingTheirDatagramAreConfirmedByItsEnd) {
   parser.EndOfDatagram();
   EXPECT_EQ(parser.counters().bytes_discarded, 0U);
   EXPECT_EQ(parser.counters().unknown_frames, 1U);
+  // A false start byte inside the datagram's last unknown frame (still buffered at its end)
+  // goes with it
+  Bytes tricky(12, 0x00);
+  tricky[9] = kStartByte;
+  tricky[10] = 200;  // a false candidate claiming 200 payload bytes
+  const Bytes last = RawFrame(245, 130, tricky, 1);
+  Parser buffered;
+  ParseAll(&buffered, Concat({good, last}));
+  EXPECT_GT(buffered.buffered(), 0U);
+  buffered.EndOfDatagram();
+  EXPECT_EQ(buffered.buffered(), 0U);
+  EXPECT_EQ(buffered.counters().unknown_frames, 1U);
+  EXPECT_EQ(buffered.counters().bytes_discarded, 0U);
+  ExpectConservation(buffered);
   // A datagram ending inside an unknown frame's declared length confirms nothing
   Parser cut;
   const Bytes partial(unknown.begin(), unknown.end() - 1);
