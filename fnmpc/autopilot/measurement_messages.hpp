@@ -40,7 +40,7 @@ bool FromMessage(const mavlink::Message& message, int vehicle, double time_offse
 /// rate * remote, fitted to the lower envelope of (remote, local) pairs, i.e. to the stamps
 /// shifted by the smallest transport delay. The samples are grouped in buckets of `bucket`
 /// seconds of remote time; each bucket keeps its least-delayed sample, the rate is the least-
-/// squares slope through the last kBuckets of those (once they span 2 buckets), and the
+/// squares slope through the last kBuckets of those (once two are closed: after 1 s), and the
 /// offset puts the line under every one of them. An autopilot clock running 0.9-1.1 times
 /// the wall clock (a lockstep simulation, a crystal's ppm) is then followed, where an offset
 /// alone would make its stamps ever older or newer. Until two buckets are full the rate is 1
@@ -49,8 +49,8 @@ bool FromMessage(const mavlink::Message& message, int vehicle, double time_offse
 /// not believed (rate 1). No allocation.
 class ClockMap {
  public:
-  static constexpr int kBuckets = 16;
-  explicit ClockMap(double reset_after = 1.0, double bucket = 2.0)
+  static constexpr int kBuckets = 32;
+  explicit ClockMap(double reset_after = 1.0, double bucket = 0.5)
       : reset_after_(reset_after), bucket_(bucket) {}
   void Observe(double remote, double local);
   [[nodiscard]] bool known() const { return count_ > 0; }

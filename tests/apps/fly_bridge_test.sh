@@ -11,7 +11,7 @@
 # machine it varies from run to run (4.5 % and 15.3 % measured, docs/autopilot.md), and a
 # timing-dependent 20 % limit would make CI flaky.
 # The scenario: ros/fnmpc_ros/test/triangle_20s.yaml with take-off, legs and landing 4 s later
-# (the link's handshake allowance), 28 s.
+# (the link's handshake allowance), 32 s.
 # Usage: fly_bridge_test.sh FNMPC SOURCE_DIR AUTOPILOT
 set -euo pipefail
 fnmpc=$1

@@ -5,7 +5,7 @@
 # some with MAVLink 2 start bytes and headers) at the same port. The replies must stay locked
 # on the flight controller (docs/link.md): setpoints reach the autopilot at 19 Hz or more while
 # armed, the flight ends disarmed with exit 0 and no unusable estimate. The scenario:
-# config/scenarios/single.yaml shortened to 21 s (two legs).
+# config/scenarios/single.yaml shortened to 25 s (two legs).
 # Usage: fly_listen_junk_test.sh FNMPC SOURCE_DIR AUTOPILOT
 set -euo pipefail
 fnmpc=$1

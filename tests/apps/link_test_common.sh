@@ -12,8 +12,9 @@ trap cleanup EXIT
 fail() { echo "FAIL: $*" >&2; exit 1; }
 
 # write_short_scenario SOURCE_DIR triangle|single OUT: ros/fnmpc_ros/test/triangle_20s.yaml
-# with take-off, legs and landing 4 s later (the link's handshake allowance), 28 s; or
-# config/scenarios/single.yaml cut to two legs, 21 s.
+# with take-off, legs and landing 4 s later (the link's handshake allowance), 32 s (the
+# landing ends about 27 s: 5 s for the land detector and the disarm); or
+# config/scenarios/single.yaml cut to two legs, 25 s.
 write_short_scenario() {
   /usr/bin/python3 - "$1" "$2" "$3" <<'PY'
 import os, sys, yaml
@@ -27,7 +28,7 @@ if kind == "triangle":
     s["phases"]["takeoff_time"] += 4.0
     s["leader"]["start_time"] += 4.0
     s["phases"]["landing_time"] += 4.0
-    s["duration"] = 28.0
+    s["duration"] = 32.0
 else:
     s["phases"]["takeoff_time"] = 5.0
     s["leader"]["start_time"] = 9.0
@@ -35,7 +36,7 @@ else:
     s["leader"]["leg_duration"] = 2.0
     s["leader"]["hold_duration"] = 1.0
     s["phases"]["landing_time"] = 15.0
-    s["duration"] = 21.0
+    s["duration"] = 25.0
 yaml.safe_dump(s, open(dst, "w"), sort_keys=False)
 PY
 }
