@@ -48,6 +48,7 @@ EmulatedAutopilot::EmulatedAutopilot(const EmulatedAutopilotSettings& settings)
       rate(settings_.attitude_rate, px4 ? 100 : 50);
   stream_rate_[static_cast<int>(SensorKind::kBattery)] =
       rate(settings_.sys_status_rate, px4 ? 5 : 2);
+  default_rate_ = stream_rate_;
   stream_next_.fill(-kInf);
 }
 
@@ -191,8 +192,7 @@ void EmulatedAutopilot::OnFrame(const mavlink::Frame& frame, double now, Outbox*
     if (interval < 0.0F) {
       stream_rate_[k] = 0.0;
     } else if (interval == 0.0F) {
-      const EmulatedAutopilot defaults(settings_);
-      stream_rate_[k] = defaults.stream_rate_[k];
+      stream_rate_[k] = default_rate_[k];
     } else {
       stream_rate_[k] = 1e6 / static_cast<double>(interval);
     }

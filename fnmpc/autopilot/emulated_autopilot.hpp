@@ -137,6 +137,7 @@ class EmulatedAutopilot {
   LandDetector land_detector_;
   // Per SensorKind: the stream's rate [Hz] and the next stamp due.
   std::array<double, kNumSensorKinds> stream_rate_{};
+  std::array<double, kNumSensorKinds> default_rate_{};  // the settings' (interval 0 restores)
   std::array<double, kNumSensorKinds> stream_next_{};
   EmulatorEvent event_ = EmulatorEvent::kNone;
   double event_time_ = kNaN;

@@ -10,14 +10,7 @@ fnmpc=$1
 src=$2
 autopilot=$3
 scenario=$src/config/scenarios/triangle.yaml
-work=$(mktemp -d)
-pids=()
-cleanup() {
-  for p in "${pids[@]}"; do kill -9 "$p" 2>/dev/null || true; done
-  rm -rf "$work"
-}
-trap cleanup EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+source "$(dirname "$0")/link_test_common.sh"
 base=$((40000 + ($$ % 2000) * 10))
 vehicles="leader follower1 follower2"
 

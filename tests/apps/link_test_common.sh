@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: BSD-3-Clause
 # Sourced by the real-time link tests (fly_bridge_test.sh, fly_clock_rate_test.sh,
-# fly_listen_junk_test.sh): a work folder removed at exit with every process in `pids`
+# fly_listen_junk_test.sh, fly_link_loss_test.sh): a work folder removed at exit with every process in `pids`
 # killed, `fail`, and the short scenarios they fly.
 work=$(mktemp -d)
 pids=()
