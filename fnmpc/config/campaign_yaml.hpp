@@ -7,7 +7,7 @@
 
 namespace fnmpc::config {
 
-/// The identification campaign file (shared/data-formats.md, "Campaign file"). Paths are
+/// The identification campaign file (docs/data-formats.md, "Campaign file"). Paths are
 /// resolved relative to the campaign file's directory.
 struct Campaign {
   std::string name;              ///< free text

@@ -8,7 +8,7 @@
 
 namespace fnmpc::config {
 
-/// The required numeric columns of one CSV file (shared/data-formats.md: one header row,
+/// The required numeric columns of one CSV file (docs/data-formats.md: one header row,
 /// comma separated, columns in any order, extra columns ignored).
 class CsvTable {
  public:

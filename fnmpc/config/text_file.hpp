@@ -7,7 +7,7 @@
 namespace fnmpc::config {
 
 /// Largest input file the readers accept [bytes]: far above any configuration or log of the
-/// formats (shared/data-formats.md), low enough that a wrong path cannot exhaust memory.
+/// formats (docs/data-formats.md), low enough that a wrong path cannot exhaust memory.
 inline constexpr std::size_t kMaxInputFileBytes = std::size_t{64} << 20;
 
 /// Reads the whole of `path`. Only regular files are read (a directory, FIFO, socket or

@@ -21,7 +21,7 @@ inline constexpr double kPlausibleGravity = 9.81;  ///< [m/s^2]
 /// needs less than full throttle, at every voltage of kPlausibleVoltageRange.
 void CheckVehiclePlausible(const model::VehicleParams& params, const YamlMap& map);
 
-/// Reads a vehicle file (format: shared/data-formats.md, "Vehicle file"). Every key of
+/// Reads a vehicle file (format: docs/data-formats.md, "Vehicle file"). Every key of
 /// the format is required except `bias`; unknown, missing or mistyped keys and
 /// non-physical values throw ConfigError naming file, line and key.
 model::VehicleParams LoadVehicleFile(const std::string& path);

@@ -31,7 +31,7 @@ struct CalibrationBias {
 };
 
 /// Physical and identified parameters of one quadrotor (the vehicle YAML of
-/// shared/data-formats.md). Roll, pitch, yaw order in every 3-vector.
+/// docs/data-formats.md). Roll, pitch, yaw order in every 3-vector.
 struct VehicleParams {
   double mass = 1.37;                                          ///< [kg]
   Eigen::Vector3d inertia{0.0123, 0.0136, 0.0107};             ///< body principal inertia [kg m^2]

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// The KKT value of the benchmark spec (shared/benchmark/ocp-spec.md) for an RtiSolver's
+// The KKT value of the benchmark spec (docs/benchmark-spec.md) for an RtiSolver's
 // iterate with the last QP's multipliers.
 #pragma once
 

@@ -10,7 +10,7 @@
 
 namespace fnmpc::sysid {
 
-/// A logged closed-loop flight (shared/data-formats.md, flight.csv); all vectors have the
+/// A logged closed-loop flight (docs/data-formats.md, flight.csv); all vectors have the
 /// same length and t is increasing.
 struct FlightLog {
   std::vector<double> t;        ///< [s]

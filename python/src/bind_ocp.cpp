@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // The shipped optimal control problems (fnmpc/rti/benchmark_ocps.hpp, problems of
-// shared/benchmark/ocp-spec.md and of the formation controller): leader L, follower F2 and
+// docs/benchmark-spec.md and of the formation controller): leader L, follower F2 and
 // the reduced follower F2, each as an RTI solver with numpy vectors in and out.
 #include <pybind11/eigen.h>
 #include <pybind11/stl.h>

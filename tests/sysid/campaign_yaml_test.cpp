@@ -30,7 +30,7 @@ std::string ErrorOf(const std::string& text) {
 }
 
 TEST(CampaignYamlTest, ParsesTheDocumentedExample) {
-  // Given the example of shared/data-formats.md, When parsed, Then every field is set.
+  // Given the example of docs/data-formats.md, When parsed, Then every field is set.
   const Campaign c = ParseCampaign(YamlMap::LoadString(kCampaign, "campaign.yaml"));
   EXPECT_EQ(c.name, "storm-drone-4");
   EXPECT_DOUBLE_EQ(c.mass, 1.37);

@@ -5,7 +5,7 @@
 // spec's least-squares costs, input bounds and HARD state bounds. IPOPT gets the exact
 // cost Hessian and the dynamics' second derivatives by central differences of the exact
 // RK4 sensitivities, and solves to tol 1e-10. The benchmark problems L and F2
-// (shared/benchmark/ocp-spec.md) are checked with and without active bounds.
+// (docs/benchmark-spec.md) are checked with and without active bounds.
 #include <gtest/gtest.h>
 #include <IpIpoptApplication.hpp>
 #include <IpSolveStatistics.hpp>
