@@ -17,10 +17,10 @@
 #include <vector>
 
 #include "apps/fnmpc/commands.hpp"
-#include "apps/fnmpc/controller_setup.hpp"
-#include "apps/fnmpc/onboard_link.hpp"
 #include "apps/fnmpc/output_files.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/onboard/controller_setup.hpp"
+#include "fnmpc/onboard/onboard_link.hpp"
 
 namespace fnmpc::app {
 namespace {
@@ -70,7 +70,7 @@ class FlyLog {
   }
   FlyLog(const FlyLog&) = delete;
   FlyLog& operator=(const FlyLog&) = delete;
-  void Row(double t, const formation::ControlOutput& c, OnboardLink& link) {
+  void Row(double t, const formation::ControlOutput& c, onboard::OnboardLink& link) {
     // The own-state estimator's health (docs/estimation.md "Health"): why an estimate is not
     // usable can be read from the log.
     const estimation::VehicleEstimate& own = link.controller().estimates().own;
@@ -83,7 +83,7 @@ class FlyLog {
         own.valid ? 1 : 0, h.flags, h.stale_kinds, h.staleness[static_cast<int>(SensorKind::kImu)],
         h.staleness[static_cast<int>(SensorKind::kMocapPose)]);
   }
-  void Events(OnboardLink* link) {
+  void Events(onboard::OnboardLink* link) {
     std::string line;
     nlohmann::json e;
     while (link->PopEvent(&line, &e)) {
@@ -111,13 +111,14 @@ int Fly(const FlyArgs& a) {
                                 sc.name + ": it has no controller to fly");
   }
   const std::uint64_t seed = a.seed >= 0 ? static_cast<std::uint64_t>(a.seed) : sc.seed;
-  OnboardLinkOptions options;
+  onboard::OnboardLinkOptions options;
   options.link = a.link;
   options.autopilot = a.autopilot;
   options.settings_file = a.link_settings;
   options.autopilot_clock = a.clock == "autopilot";
   options.signing_key = a.signing_key;
-  OnboardLink link(ControllerConfigFor(sc, index, LeaderTrajectory(sc, seed)), index, options);
+  onboard::OnboardLink link(
+      onboard::ControllerConfigFor(sc, index, onboard::LeaderTrajectory(sc, seed)), index, options);
 
   const std::string dir = a.out.empty() ? "fly-" + a.vehicle : a.out;
   std::filesystem::create_directories(dir);

@@ -13,11 +13,11 @@
 #include <thread>
 
 #include "apps/fnmpc/commands.hpp"
-#include "apps/fnmpc/formation_print.hpp"
 #include "apps/fnmpc/output_files.hpp"
 #include "apps/fnmpc/run_folder.hpp"
 #include "apps/fnmpc/scenario_runner.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/onboard/formation_print.hpp"
 
 namespace fnmpc::app {
 namespace {
@@ -67,7 +67,8 @@ int Run(const RunArgs& a) {
   }
   for (const std::string& w : sc.warnings) fmt::print(stderr, "fnmpc run: warning: {}\n", w);
   if (a.dry_run) {
-    fmt::print("# {}: the vehicles as flown (fnmpc run --dry-run)\n{}", sc.name, VehiclesYaml(sc));
+    fmt::print("# {}: the vehicles as flown (fnmpc run --dry-run)\n{}", sc.name,
+               onboard::VehiclesYaml(sc));
     return 0;
   }
   std::string dir = a.out;

@@ -29,7 +29,7 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
   const double duration = options.duration > 0.0 ? options.duration : sc.duration;
   const bool manual = sc.leader_mode == "manual";
   const int nv = static_cast<int>(sc.vehicles.size());
-  const formation::WaypointTrajectory trajectory = LeaderTrajectory(sc, options.seed);
+  const formation::WaypointTrajectory trajectory = onboard::LeaderTrajectory(sc, options.seed);
 
   // ---- World. The autopilots' command-timeout failsafe is on: a vehicle whose controller
   // stops (fault kill_controller) is landed by its autopilot, as a real one would.
@@ -45,7 +45,7 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
   std::vector<std::unique_ptr<formation::VehicleController>> ctrl(nv);
   for (int i = 0; i < nv; ++i) {
     if (manual && i == sc.leader) continue;
-    formation::ControllerConfig cc = ControllerConfigFor(sc, i, trajectory);
+    formation::ControllerConfig cc = onboard::ControllerConfigFor(sc, i, trajectory);
     cc.safety.injected_failure_rate = faults.solver_failure_rate;  // 0: off
     cc.safety.injected_failure_seed = options.seed;
     ctrl[i] = std::make_unique<formation::VehicleController>(cc);
@@ -394,7 +394,7 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
         err.fill(kNaN);
         double ferr = kNaN;
         if (!v.leader) {
-          ferr = FormationError(sc, i, positions, x.euler.z(), &err, &rel);
+          ferr = onboard::FormationError(sc, i, positions, x.euler.z(), &err, &rel);
           for (std::size_t j = 0; j < v.neighbours.size(); ++j) {
             if (ctrl[i] && j < ctrl[i]->estimates().neighbours.size()) {
               est_rel[j] = ctrl[i]->estimates().neighbours[j].head<3>();

@@ -7,8 +7,8 @@
 #include <cmath>
 #include <numbers>
 
-#include "apps/fnmpc/formation_print.hpp"
 #include "fnmpc/formation/neighbour_thrust.hpp"
+#include "fnmpc/onboard/formation_print.hpp"
 
 namespace fnmpc::app {
 
@@ -52,7 +52,7 @@ json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options, con
   auto worse = [](double a, double b) {
     return std::isnan(a) ? b : (std::isnan(b) ? a : std::max(a, b));
   };
-  const std::vector<int> depth = TieDepths(sc);
+  const std::vector<int> depth = onboard::TieDepths(sc);
   for (int i = 0; i < nv; ++i) {
     const auto& v = sc.vehicles[i];
     const VehicleRecord& L = r.vehicles[i];

@@ -12,7 +12,6 @@
 #include <random>
 #include <stdexcept>
 
-#include "apps/fnmpc/formation_print.hpp"
 #include "apps/fnmpc/output_files.hpp"
 #include "apps/fnmpc/run_loop.hpp"
 #include "apps/fnmpc/run_metrics.hpp"
@@ -21,13 +20,14 @@
 #include "fnmpc/formation/trajectory.hpp"
 #include "fnmpc/formation/vehicle_controller.hpp"
 #include "fnmpc/model/true_plant.hpp"
+#include "fnmpc/onboard/formation_print.hpp"
 #include "fnmpc/sim/world.hpp"
 
 namespace fnmpc::app {
 
 using json = nlohmann::json;
 
-static_assert(kGroundRestHeight == sim::World::kRestHeight,
+static_assert(onboard::kGroundRestHeight == sim::World::kRestHeight,
               "the controllers' ground height is the simulator's resting height");
 
 sim::WorldConfig WorldConfigFor(const config::ScenarioConfig& sc, std::uint64_t seed) {

@@ -8,11 +8,11 @@
 #include <string>
 #include <vector>
 
-#include "apps/fnmpc/controller_setup.hpp"
 #include "apps/fnmpc/run_log.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
 #include "fnmpc/formation/trajectory.hpp"
 #include "fnmpc/formation/vehicle_controller.hpp"
+#include "fnmpc/onboard/controller_setup.hpp"
 #include "fnmpc/sim/world.hpp"
 
 /// Closed loop of a formation scenario: MuJoCo World (1 ms physics, all sensors) plus one

@@ -22,7 +22,6 @@
 #include <vector>
 
 #include "apps/fnmpc/commands.hpp"
-#include "apps/fnmpc/controller_setup.hpp"
 #include "apps/fnmpc/output_files.hpp"
 #include "apps/fnmpc/scenario_runner.hpp"
 #include "fnmpc/autopilot/emulated_autopilot.hpp"
@@ -34,6 +33,7 @@
 #include "fnmpc/link/mavlink_connection.hpp"
 #include "fnmpc/link/signing_key.hpp"
 #include "fnmpc/mavlink/frame_conversions.hpp"
+#include "fnmpc/onboard/controller_setup.hpp"
 #include "fnmpc/sim/world.hpp"
 
 namespace fnmpc::app {
@@ -160,7 +160,7 @@ int SimLink(const SimLinkArgs& a) {
   wc.command_timeout.enabled = true;
   wc.command_timeout.timeout = es.setpoint_timeout;
   sim::World world(wc);
-  const formation::WaypointTrajectory trajectory = LeaderTrajectory(sc, seed);
+  const formation::WaypointTrajectory trajectory = onboard::LeaderTrajectory(sc, seed);
 
   const std::string dir = a.out.empty() ? "sim-link-" + sc.name : a.out;
   std::filesystem::create_directories(dir);
@@ -390,7 +390,7 @@ int SimLink(const SimLinkArgs& a) {
         }
         double err = kNaN;
         if (!sc.vehicles[i].leader) {
-          err = FormationError(sc, i, positions, truth[i].euler.z());
+          err = onboard::FormationError(sc, i, positions, truth[i].euler.z());
           const bool window = t >= sc.trajectory_start && t < config::LandingTime(sc, i);
           if (window) L.errors.push_back(err);
           if (window && settled) L.steady_errors.push_back(err);

@@ -3,7 +3,7 @@
 // into the run folder of `fnmpc run` (one <vehicle>.csv with the same columns, summary.json)
 // so `fnmpc report OUT_DIR` plots it. One row per setpoint of a vehicle (its control steps);
 // the "true" state is the sim's ground_truth topic or, in flight, the motion-capture pose
-// (velocity then NaN). Formation errors use app::FormationError on those positions and the
+// (velocity then NaN). Formation errors use onboard::FormationError on those positions and the
 // runner's window/steady definitions; columns without a source are NaN (docs/ros.md).
 #include <fmt/core.h>
 #include <fmt/ostream.h>
@@ -114,7 +114,7 @@ int Convert(const std::string& bag_file, const std::string& scenario_file, const
   }
   bag.close();
 
-  const auto trajectory = app::LeaderTrajectory(sc, sc.seed);
+  const auto trajectory = onboard::LeaderTrajectory(sc, sc.seed);
   std::filesystem::create_directories(dir);
   nlohmann::json vehicles = nlohmann::json::object();
   double mean_worst = kNaN, steady_worst = kNaN, max_worst = kNaN;
@@ -160,7 +160,7 @@ int Convert(const std::string& bag_file, const std::string& scenario_file, const
       double ferr = kNaN, track = kNaN;
       Vec3 ref = Vec3::Constant(kNaN);
       if (!v.leader) {
-        ferr = app::FormationError(sc, i, positions, x.euler.z(), &err, &rel);
+        ferr = onboard::FormationError(sc, i, positions, x.euler.z(), &err, &rel);
         if (window && std::isfinite(ferr)) errors.push_back(ferr);
         if (steady && std::isfinite(ferr)) steady_errors.push_back(ferr);
         if (dg) {

@@ -66,7 +66,7 @@ class SimNode {
     positive("failsafe_descent_speed", failsafe_descent_speed_);
     duration_ = duration;
     manual_ = scenario_.leader_mode == "manual";
-    trajectory_ = app::LeaderTrajectory(scenario_, static_cast<std::uint64_t>(seed));
+    trajectory_ = onboard::LeaderTrajectory(scenario_, static_cast<std::uint64_t>(seed));
     world_ = std::make_unique<sim::World>(
         app::WorldConfigFor(scenario_, static_cast<std::uint64_t>(seed)));
 

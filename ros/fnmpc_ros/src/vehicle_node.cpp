@@ -3,7 +3,7 @@
 // follower as its scenario entry says). Subscribes only to its own sensor topics (mocap, IMU,
 // optical flow, compass, battery, relative measurements), publishes the attitude/thrust
 // setpoint, the estimate, the predicted path and solver diagnostics. Plumbing only: the
-// controller is built by app::ControllerConfigFor exactly as `fnmpc run` builds it.
+// controller is built by onboard::ControllerConfigFor exactly as `fnmpc run` builds it.
 //
 // Two timing modes (docs/ros.md):
 //  * lockstep (simulation): measurements are buffered per topic; on each SimSync from
@@ -14,7 +14,7 @@
 //  * free-running (flight): each measurement goes to the estimators on arrival; a timer on
 //    ROS time (wall or /clock) runs Control every sample_time.
 // With ~link (docs/autopilot.md) the setpoints go to the flight controller over MAVLink
-// (app::OnboardLink, as `fnmpc fly`), whose measurements join the topics'; with
+// (onboard::OnboardLink, as `fnmpc fly`), whose measurements join the topics'; with
 // ~link_clock: autopilot the steps follow the link's ticks (`fnmpc sim-link --lockstep`).
 #include <nav_msgs/Path.h>
 #include <ros/callback_queue.h>
@@ -27,10 +27,10 @@
 #include <memory>
 #include <vector>
 
-#include "apps/fnmpc/onboard_link.hpp"
 #include "apps/fnmpc/scenario_runner.hpp"
 #include "conversions.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/onboard/onboard_link.hpp"
 #include "fnmpc_ros/SimSync.h"
 
 namespace fnmpc::ros_bridge {
@@ -84,10 +84,10 @@ class VehicleNode {
       }
       scenario_.compensation = static_cast<formation::Compensation>(level);
     }
-    const auto trajectory = app::LeaderTrajectory(scenario_, static_cast<std::uint64_t>(seed));
+    const auto trajectory = onboard::LeaderTrajectory(scenario_, static_cast<std::uint64_t>(seed));
     // ~link: fly through the flight controller over MAVLink (docs/autopilot.md), the same
     // OnboardLink as `fnmpc fly`; the setpoint topic then records what was sent.
-    app::OnboardLinkOptions link;
+    onboard::OnboardLinkOptions link;
     pnh.param("link", link.link, std::string());
     pnh.param("autopilot", link.autopilot, std::string("px4"));
     pnh.param("link_settings", link.settings_file, std::string());
@@ -98,14 +98,15 @@ class VehicleNode {
                                "': expected local or autopilot");
     }
     link.autopilot_clock = link_clock == "autopilot";
-    const formation::ControllerConfig cc = app::ControllerConfigFor(scenario_, index_, trajectory);
+    const formation::ControllerConfig cc =
+        onboard::ControllerConfigFor(scenario_, index_, trajectory);
     if (!link.link.empty()) {
       if (lockstep_) {
         throw std::runtime_error("parameters " + pnh.resolveName("link") + " and " +
                                  pnh.resolveName("lockstep") +
                                  ": the link's lockstep is ~link_clock: autopilot, not sim_node's");
       }
-      link_ = std::make_unique<app::OnboardLink>(cc, index_, link);
+      link_ = std::make_unique<onboard::OnboardLink>(cc, index_, link);
       controller_ = &link_->controller();
       link_lockstep_ = link.autopilot_clock;
     } else {
@@ -329,7 +330,7 @@ class VehicleNode {
   int index_ = -1;
   bool lockstep_ = false;
   std::unique_ptr<formation::VehicleController> own_controller_;  // without ~link
-  std::unique_ptr<app::OnboardLink> link_;                        // with ~link
+  std::unique_ptr<onboard::OnboardLink> link_;                    // with ~link
   formation::VehicleController* controller_ = nullptr;            // either's controller
   bool link_lockstep_ = false;
   bool stop_logged_ = false;

@@ -3,7 +3,7 @@
 // ground-truth topics until `duration` of simulated time, optionally kills one vehicle node
 // (SIGKILL) mid-flight and optionally runs `fnmpc run` on the same scenario and seed; then
 // the gtest cases (selected with --gtest_filter in the .test file) assert on what it saw.
-// Metrics are computed with app::FormationError and the runner's window/steady definitions.
+// Metrics are computed with onboard::FormationError and the runner's window/steady definitions.
 #include <gtest/gtest.h>
 #include <nav_msgs/Odometry.h>
 #include <ros/callback_queue.h>
@@ -130,7 +130,7 @@ void Watch() {
   ros::NodeHandle nh;
   const int nv = static_cast<int>(g_scenario.vehicles.size());
   const auto trajectory =
-      app::LeaderTrajectory(g_scenario, static_cast<std::uint64_t>(g_settings.seed));
+      onboard::LeaderTrajectory(g_scenario, static_cast<std::uint64_t>(g_settings.seed));
   const double window_end = config::FormationWindowEnd(g_scenario);
   g_obs.follower.resize(nv);
   g_obs.pair_after_kill.resize(nv);
@@ -255,7 +255,7 @@ void Watch() {
         const auto& v = g_scenario.vehicles[i];
         if (v.leader) continue;
         std::array<double, formation::kMaxNeighbours> per;  // filled by FormationError
-        const double e = app::FormationError(g_scenario, i, pos, euler[i].z(), &per);
+        const double e = onboard::FormationError(g_scenario, i, pos, euler[i].z(), &per);
         if (window) g_obs.samples_of[i].push_back({t, steady, per});
         if (window) g_obs.follower[i].errors.push_back(e);
         if (steady) g_obs.follower[i].steady.push_back(e);

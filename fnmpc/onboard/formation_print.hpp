@@ -6,7 +6,7 @@
 
 #include "fnmpc/config/scenario_yaml.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::onboard {
 
 /// Graph depth of every vehicle: the fewest formation ties from the leader (0), -1 when no
 /// chain of ties reaches the leader.
@@ -17,4 +17,4 @@ std::vector<int> TieDepths(const config::ScenarioConfig& scenario);
 /// instead of its `formation:` block it gives the same vehicles.
 std::string VehiclesYaml(const config::ScenarioConfig& scenario);
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::onboard

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "apps/fnmpc/formation_print.hpp"
+#include "fnmpc/onboard/formation_print.hpp"
 
 #include <fmt/format.h>
 
@@ -7,7 +7,7 @@
 
 #include "fnmpc/formation/formation_shape.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::onboard {
 
 std::vector<int> TieDepths(const config::ScenarioConfig& scenario) {
   std::vector<std::vector<int>> neighbours(scenario.vehicles.size());
@@ -48,4 +48,4 @@ std::string VehiclesYaml(const config::ScenarioConfig& scenario) {
   return out;
 }
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::onboard

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "apps/fnmpc/onboard_vehicle.hpp"
+#include "fnmpc/onboard/onboard_vehicle.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -10,7 +10,7 @@
 #include "fnmpc/autopilot/modes.hpp"
 #include "fnmpc/formation/throttle_map.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::onboard {
 namespace {
 
 double StampOf(const mavlink::Message& m) {
@@ -150,4 +150,4 @@ const OnboardStep& OnboardVehicle::Step(double t, autopilot::Outbox* out) {
   return s;
 }
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::onboard

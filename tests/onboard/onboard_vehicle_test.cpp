@@ -1,21 +1,21 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// The onboard computer without its I/O (app::OnboardVehicle) against the emulated autopilot
+// The onboard computer without its I/O (OnboardVehicle) against the emulated autopilot
 // in memory: the take-off gate stops a vehicle whose autopilot never flies our setpoints, and
 // only then (not when the autopilot disarms later); a take-off too early for the handshake is
 // refused; with a working autopilot the setpoints sent carry the controller's throttle.
-#include "apps/fnmpc/onboard_vehicle.hpp"
+#include "fnmpc/onboard/onboard_vehicle.hpp"
 
 #include <gtest/gtest.h>
 
 #include <stdexcept>
 #include <variant>
 
-#include "apps/fnmpc/controller_setup.hpp"
 #include "fnmpc/autopilot/emulated_autopilot.hpp"
 #include "fnmpc/autopilot/measurement_messages.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/onboard/controller_setup.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::onboard {
 namespace {
 
 mavlink::Frame FrameOf(const mavlink::Message& m, int system, int component) {
@@ -171,4 +171,4 @@ TEST(OnboardVehicleTest, AFlyingSessionTakesOffAndALaterDisarmIsNotAMissedTakeof
 }
 
 }  // namespace
-}  // namespace fnmpc::app
+}  // namespace fnmpc::onboard

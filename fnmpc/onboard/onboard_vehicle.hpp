@@ -16,7 +16,7 @@
 /// controller's command into normalised-thrust setpoints, the take-off gate). `fnmpc fly` and
 /// the tests drive it; the wrapper does the sockets and the clock (PX4's split of module and
 /// controller). No allocation per frame or step.
-namespace fnmpc::app {
+namespace fnmpc::onboard {
 
 /// How the onboard computer tells the time.
 enum class OnboardClock : int {
@@ -109,4 +109,4 @@ class OnboardVehicle {
   std::array<double, kNumSensorKinds> kind_first_{}, kind_last_{};
 };
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::onboard

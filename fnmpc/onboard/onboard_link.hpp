@@ -12,7 +12,7 @@
 /// (fnmpc/link) around an OnboardVehicle (controller + autopilot session). What `fnmpc fly`
 /// and the ROS vehicle node (parameter ~link) share; this header stays C++17 so the ROS
 /// translation units can include it.
-namespace fnmpc::app {
+namespace fnmpc::onboard {
 
 struct OnboardLinkOptions {
   std::string link;           ///< udp:HOST:PORT, udpout:HOST:PORT or serial:DEVICE:BAUD
@@ -80,4 +80,4 @@ class OnboardLink {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::onboard

@@ -11,7 +11,7 @@
 
 /// A scenario's controllers, without the simulator: what `fnmpc run`, `fnmpc fly` (onboard)
 /// and the ROS nodes build the same way.
-namespace fnmpc::app {
+namespace fnmpc::onboard {
 
 /// CoM height of a vehicle resting on its feet [m] (the simulator's sim::World::kRestHeight,
 /// checked where both are built).
@@ -33,4 +33,4 @@ double FormationError(const config::ScenarioConfig& scenario, int i,
                       std::array<double, formation::kMaxNeighbours>* per_neighbour = nullptr,
                       std::array<Vec3, formation::kMaxNeighbours>* relative = nullptr);
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::onboard

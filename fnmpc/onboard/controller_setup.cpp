@@ -1,14 +1,14 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "apps/fnmpc/controller_setup.hpp"
+#include "fnmpc/onboard/controller_setup.hpp"
 
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
-#include "apps/fnmpc/formation_print.hpp"
 #include "fnmpc/core/rotation.hpp"
+#include "fnmpc/onboard/formation_print.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::onboard {
 
 formation::WaypointTrajectory LeaderTrajectory(const config::ScenarioConfig& s,
                                                std::uint64_t seed) {
@@ -74,4 +74,4 @@ double FormationError(const config::ScenarioConfig& sc, int i, const std::vector
   return sum / static_cast<double>(v.neighbours.size());
 }
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::onboard

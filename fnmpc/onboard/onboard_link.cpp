@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "apps/fnmpc/onboard_link.hpp"
+#include "fnmpc/onboard/onboard_link.hpp"
 
 #include <fmt/core.h>
 
@@ -7,15 +7,15 @@
 #include <stdexcept>
 #include <string>
 
-#include "apps/fnmpc/onboard_vehicle.hpp"
 #include "fnmpc/autopilot/measurement_messages.hpp"
 #include "fnmpc/autopilot/modes.hpp"
 #include "fnmpc/config/settings_yaml.hpp"
 #include "fnmpc/link/link_address.hpp"
 #include "fnmpc/link/mavlink_connection.hpp"
 #include "fnmpc/link/signing_key.hpp"
+#include "fnmpc/onboard/onboard_vehicle.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::onboard {
 namespace {
 
 autopilot::SessionSettings SessionSettingsFor(const OnboardLinkOptions& o, int vehicle,
@@ -219,4 +219,4 @@ nlohmann::json OnboardLink::Summary() const {
             {"send_failures", impl_->conn.send_failures()}}}};
 }
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::onboard
