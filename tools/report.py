@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: BSD-3-Clause
-"""Plots of a run folder written by `fnmpc run` (PNG) and one HTML page bundling them with
-the metrics table. Usage: MPLBACKEND=Agg /usr/bin/python3 tools/report.py RUN_DIR"""
+"""Plots of a run folder written by `fnmpc run` (PNG) and one HTML page bundling them: a
+headline first (verdict, failures, key figures beside the reference work's;
+tools/report_headline.py), then the metrics tables.
+Usage: MPLBACKEND=Agg /usr/bin/python3 tools/report.py RUN_DIR"""
 import csv
 import html
 import json
@@ -13,6 +15,8 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+
+from report_headline import headline_html  # noqa: E402  (beside this script)
 
 
 def read_csv(path):
@@ -178,6 +182,8 @@ def main():
     out.append("<h1>Scenario %s</h1>" % html.escape(str(summary.get("scenario"))))
     out.append("<p><a href='replay.html'>Interactive 3-D replay</a> (replay.html, written by "
                "<code>fnmpc report</code> after these plots)</p>")
+    # What a person reads first: verdict, failures, key figures beside the reference work's.
+    out.append(headline_html(summary))
     out.append("<h2>Metrics</h2><table>")
     for k, v in top:
         out.append("<tr><th align=left>%s</th><td>%s</td></tr>" % (html.escape(k), fmt(v)))
