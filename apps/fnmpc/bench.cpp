@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// `fnmpc bench`: the closed-loop solver benchmark of shared/benchmark/ocp-spec.md.
+// `fnmpc bench`: the closed-loop solver benchmark of docs/benchmark-spec.md.
 #include <fmt/core.h>
 
 #include <memory>
@@ -88,9 +88,10 @@ int Run(const BenchOptions& o) {
 
 void Register(CLI::App& app, std::vector<Command>& registry) {
   auto o = std::make_shared<BenchOptions>();
-  CLI::App* sub = app.add_subcommand(
-      "bench", "Closed-loop solver benchmark (shared/benchmark/ocp-spec.md): L, F2, F6 and the "
-               "reduced F2/F6, nominal and aggressive scenarios");
+  CLI::App* sub =
+      app.add_subcommand("bench",
+                         "Closed-loop solver benchmark (docs/benchmark-spec.md): L, F2, F6 and the "
+                         "reduced F2/F6, nominal and aggressive scenarios");
   sub->add_flag("--json", o->json, "print a JSON array, one object per problem and scenario");
   sub->add_option("--problem", o->problems, "problems to run (default: all)")
       ->check(CLI::IsMember({"L", "F2", "F6", "F2-reduced", "F6-reduced"}));

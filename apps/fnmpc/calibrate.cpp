@@ -172,7 +172,7 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
   CLI::App* sub = app.add_subcommand(
       "calibrate", "Estimate attitude biases and thrust scale from a flight (docs/sysid.md)");
   sub->add_option("vehicle", o->vehicle, "vehicle YAML")->required();
-  sub->add_option("flight", o->flight, "flight CSV (shared/data-formats.md)")->required();
+  sub->add_option("flight", o->flight, "flight CSV (docs/data-formats.md)")->required();
   sub->add_option("-o,--output", o->output, "calibrated vehicle YAML to write")->required();
   sub->add_flag("!--no-plots", o->plots, "skip tools/sysid_report.py (CSV dumps only)");
   sub->add_option("--window", o->settings.window, "prediction window [s]")

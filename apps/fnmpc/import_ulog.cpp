@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // `fnmpc import-ulog LOG.ulg -o DIR`: the identification inputs of a PX4 flight log in the
-// campaign formats (shared/data-formats.md): attitude_steps.csv and flight.csv, converted to
+// campaign formats (docs/data-formats.md): attitude_steps.csv and flight.csv, converted to
 // the project's frames (world ENU, body FLU), a summary of the log (airframe, PX4 version,
 // parameters, armed and in-air segments, topic rates, dropouts and timestamp gaps) printed
 // and written as DIR/summary.json, and the hover thrust of the flight (docs/ulog.md).

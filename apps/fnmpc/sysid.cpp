@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // `fnmpc sysid CAMPAIGN.yaml -o vehicle.yaml`: identifies a vehicle file from a campaign
-// (shared/data-formats.md); `fnmpc sysid synth OUTDIR`: synthesises a campaign with the
+// (docs/data-formats.md); `fnmpc sysid synth OUTDIR`: synthesises a campaign with the
 // simulator from a vehicle that differs from the shipped one (docs/sysid.md).
 #include <fmt/core.h>
 #include <fmt/os.h>
@@ -869,7 +869,7 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
   auto o = std::make_shared<SysidOptions>();
   CLI::App* sub =
       app.add_subcommand("sysid", "Identify a vehicle file from a campaign (docs/sysid.md)");
-  sub->add_option("campaign", o->campaign, "campaign YAML (shared/data-formats.md)");
+  sub->add_option("campaign", o->campaign, "campaign YAML (docs/data-formats.md)");
   sub->add_option("-o,--output", o->output, "vehicle YAML to write");
   sub->add_flag("!--no-plots", o->plots, "skip tools/sysid_report.py (CSV dumps only)");
   sub->add_option("--motor-time-constant", o->motor_time_constant,

@@ -13,7 +13,7 @@ namespace {
 void Register(CLI::App& app, std::vector<Command>& registry) {
   auto path = std::make_shared<std::string>();
   CLI::App* sub = app.add_subcommand("check-vehicle", "Validate a vehicle YAML file and print it");
-  sub->add_option("file", *path, "vehicle YAML (shared/data-formats.md)")->required();
+  sub->add_option("file", *path, "vehicle YAML (docs/data-formats.md)")->required();
   registry.push_back({sub, [path] {
                         // LoadVehicleFile checks plausibility (config::CheckVehiclePlausible).
                         const auto p = config::LoadVehicleFile(*path);
