@@ -6,7 +6,7 @@
   /usr/bin/python3 tools/same_results.py compare DIR_A DIR_B
 
 `record` flies every shipped scenario under config/scenarios/ (top level and stress/; not
-scale/, minutes each), a 12-run slice of the fault campaign (scripts/fault-campaign.py
+scale/, minutes each), a 12-run slice of the fault campaign (studies/faults-and-safety/fault-campaign.py
 --runs 12 --keep), the `fnmpc bench` closed loops (--json) and a sysid round trip
 (`sysid synth` then `sysid` and `calibrate`), writing each into OUT_DIR. --quick flies only
 triangle, stress/kill-follower and the bench.
@@ -47,7 +47,7 @@ def record(fnmpc, out, quick):
         subprocess.run([fnmpc, "bench", "--json"], stdout=f, stderr=subprocess.DEVNULL)
     if quick:
         return
-    run(["/usr/bin/python3", os.path.join(ROOT, "scripts/fault-campaign.py"), "--fnmpc", fnmpc,
+    run(["/usr/bin/python3", os.path.join(ROOT, "studies/faults-and-safety/fault-campaign.py"), "--fnmpc", fnmpc,
          "--runs", "12", "--keep", "--out", os.path.join(out, "faults")])
     synth = os.path.join(out, "sysid")
     run([fnmpc, "sysid", "synth", synth])

@@ -340,7 +340,7 @@ function main() {
       }),
   };
   requestAnimationFrame(loop);
-  window.fnmpcReplay.readyMs = performance.now(); // since navigation start (tools/replay_load_time.py)
+  window.fnmpcReplay.readyMs = performance.now(); // since navigation start (studies/replay-load-time/replay_load_time.py)
   setStatus('ready');
 }
 

@@ -3,7 +3,7 @@
 """Safety campaign: flies the stress scenarios of config/scenarios/stress/ with `fnmpc run`
 and prints the markdown table of docs/results.md, section "Faults and safety".
 
-  /usr/bin/python3 scripts/safety-campaign.py [--fnmpc build/apps/fnmpc/fnmpc] [--out runs/safety]
+  /usr/bin/python3 studies/faults-and-safety/safety-campaign.py [--fnmpc build/apps/fnmpc/fnmpc] [--out runs/safety]
       [--runs N] [--only NAME ...] [--reality on|off] [--compensation none|observer]
 
 Per scenario: runs, vehicles that ended on the ground with motors off (landed or

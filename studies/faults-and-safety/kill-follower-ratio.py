@@ -4,9 +4,10 @@
 the remaining follower's error to the leader after the killed neighbour left its cost, against
 the fault-free flight with the same seed and plant.
 
-    fnmpc run config/scenarios/stress/kill-follower.yaml --runs 5 -o /tmp/kf5 -q
-    fnmpc run config/scenarios/triangle.yaml --reality off --runs 5 -o /tmp/tri5off -q
-    scripts/kill-follower-ratio.py /tmp/kf5 /tmp/tri5off
+    fnmpc campaign studies/faults-and-safety/kill-follower/killed-ideal.yaml -q
+    fnmpc campaign studies/faults-and-safety/kill-follower/fault-free-ideal.yaml -q
+    studies/faults-and-safety/kill-follower-ratio.py runs/kill-follower/killed-ideal/merged \
+        runs/kill-follower/fault-free-ideal/merged
 
 Per seed: when the follower dropped the killed vehicle (summary.json
 faults.kill_controller.followers.<follower>.dropped_from_cost_s), the mean of the CSV column

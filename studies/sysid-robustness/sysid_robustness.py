@@ -2,7 +2,7 @@
 # SPDX-License-Identifier: BSD-3-Clause
 """Robustness study of `fnmpc sysid` + `fnmpc calibrate` (docs/sysid.md "Robustness study").
 
-    PATH=/usr/bin:$PATH /usr/bin/python3 tools/sysid_robustness.py FNMPC [OUTDIR]
+    PATH=/usr/bin:$PATH /usr/bin/python3 studies/sysid-robustness/sysid_robustness.py FNMPC [OUTDIR]
 
 For each variation of the synthetic campaign (`fnmpc sysid synth` from the project's
 simulator: transport delay, logging rate, noise, half the data, a DC-motor throttle map,

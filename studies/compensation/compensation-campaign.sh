@@ -4,11 +4,11 @@
 # compensation levels (10 seeds each, reality as the scenario ships it), plus cooperative mode on
 # a lossy link (30 % loss, 100 ms latency) and the flying leader on 2 s legs. Run from the
 # repository root; a folder that already has its summary.json is kept (resumable).
-#   scripts/compensation-campaign.sh [FNMPC] [OUT] [ONLY]  (defaults: build/apps/fnmpc/fnmpc, runs/coop)
+#   studies/compensation/compensation-campaign.sh [FNMPC] [OUT] [ONLY]  (defaults: build/apps/fnmpc/fnmpc, runs/coop)
 # ONLY (optional): an extended regular expression; only the folders whose name (e.g.
 # stress-wedge10-fast-wake) matches it are flown (one campaign at a time on a shared machine).
 # RUNS (environment, default 10): seeds 1..RUNS per folder (fewer for the large scale/ ones).
-#   scripts/compensation-table.py runs/coop/triangle-{none,observer,wake,cooperative,lossy}
+#   studies/compensation/compensation-table.py runs/coop/triangle-{none,observer,wake,cooperative,lossy}
 set -u
 F=${1:-build/apps/fnmpc/fnmpc}
 R=${2:-runs/coop}

@@ -13,7 +13,7 @@ with two meanings of moving away: `growth` = d|e|/dt, `away` = j's own velocity 
 (0.2 s averages). Prints per run and follower: the largest |e| and its vertical part in the
 NMPC phase, and the first time each rule trips (none: never).
 
-    scripts/tie-discrepancy.py /tmp/kf5 --before 26.5 --height 0.3 --speed 0.3 --time 0.3"""
+    studies/faults-and-safety/tie-discrepancy.py /tmp/kf5 --before 26.5 --height 0.3 --speed 0.3 --time 0.3"""
 import argparse
 import csv
 import glob

@@ -7,7 +7,7 @@ flies it with `fnmpc run`, writes the replay with `fnmpc report --replay-only` a
 in headless Chromium (tests/replay/devtools.py) several times. Prints the page size and the
 time from navigation start to the viewer's ready state (data decoded, scene built, first
 frame drawn) of each load.
-Usage: /usr/bin/python3 tools/replay_load_time.py FNMPC_EXE [--vehicles 28] [--loads 5]"""
+Usage: /usr/bin/python3 studies/replay-load-time/replay_load_time.py FNMPC_EXE [--vehicles 28] [--loads 5]"""
 import argparse
 import os
 import shutil
@@ -16,7 +16,7 @@ import subprocess
 import sys
 import tempfile
 
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "tests", "replay"))
 from devtools import Browser  # noqa: E402
 

@@ -5,14 +5,14 @@ config/scenarios/stress/hover.yaml): standard deviation of the thrust command an
 and pitch references, and the number of steps at the attitude bound, over the NMPC phase from
 `--from` s to the start of the landing. One row per run and follower, then the worst.
 
-  /usr/bin/python3 scripts/chatter.py RUN_DIR [--from 15] [--bound 0.35]
+  /usr/bin/python3 studies/faults-and-safety/chatter.py RUN_DIR [--from 15] [--bound 0.35]
 
 With --sweep, the trade-off of the input-rate weights instead: for each pair
 THRUST_RATE,ATTITUDE_REF_RATE it flies the hover scenario (--hover-runs seeds, the worst
 chatter) and the triangle (--triangle-runs seeds, formation errors) with those follower
 weights and prints one table row per pair.
 
-  /usr/bin/python3 scripts/chatter.py --sweep 0,0 2,50 5,200 10,1000 [--fnmpc PATH]
+  /usr/bin/python3 studies/faults-and-safety/chatter.py --sweep 0,0 2,50 5,200 10,1000 [--fnmpc PATH]
 """
 import argparse
 import csv

@@ -4,7 +4,7 @@
 docs/results.md "Scale"): depth = fewest formation ties from the leader, as each run's
 summary.json gives it per vehicle (`fnmpc run --dry-run` prints it too).
 
-  scripts/depth-profile.py RUN_FOLDER [--plot depth.png]
+  studies/scale/depth-profile.py RUN_FOLDER [--plot depth.png]
 
 Per depth, over every run and every follower at that depth: the worst steady-state mean
 formation error, the worst whole-window max formation error and the peak speed |v| (truth,

@@ -2,7 +2,7 @@
 # SPDX-License-Identifier: BSD-3-Clause
 """Fault campaign: randomized fault runs of the triangle with `fnmpc run`, table per fault kind.
 
-  /usr/bin/python3 scripts/fault-campaign.py [--fnmpc build/apps/fnmpc/fnmpc] [--runs 210]
+  /usr/bin/python3 studies/faults-and-safety/fault-campaign.py [--fnmpc build/apps/fnmpc/fnmpc] [--runs 210]
       [--seed 1] [--duration 30] [--out DIR] [--keep] [--only 55 198]
 
 A seeded RNG (--seed) draws, per run, one fault kind (round robin over KINDS, so every kind
@@ -46,7 +46,7 @@ SENSORS = ["mocap", "imu", "optical_flow", "compass", "battery", "relative"]
 COMMAND_COLUMNS = ("cmd_thrust", "cmd_roll", "cmd_pitch", "cmd_yaw")
 REST_HEIGHT = 0.1  # m, sim::World::kRestHeight: CoM height of a vehicle resting on the ground
 CONTACT_MARGIN = 0.015  # m, fnmpc run's touchdown test (apps/fnmpc/run_loop.cpp)
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # studies/<section>/
 
 
 def flight_window(sc, duration):

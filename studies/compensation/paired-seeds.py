@@ -3,7 +3,7 @@
 """Paired per-seed comparison of two run folders of the same scenario (docs/results.md
 "Cooperative mode"), and where the steady-state difference comes from.
 
-    scripts/paired-seeds.py BASE OTHER [FOLLOWER] [LEADER]
+    studies/compensation/paired-seeds.py BASE OTHER [FOLLOWER] [LEADER]
 
 For each seed (run-NN in both folders): the top-level steady-state, mean and max formation
 error of BASE and OTHER and their paired difference (mean, standard error, t, how many seeds

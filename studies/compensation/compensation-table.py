@@ -8,7 +8,7 @@ follower, mean over the runs, range of the runs) and the vertical part of the me
 mean over each follower's window of |(p_j - p_i)_z - d_j,z| for its first neighbour (the
 CSV's rel0_z against the scenario's desired offset), worst follower, mean over the runs.
 
-    scripts/compensation-table.py runs/wake/triangle-none runs/wake/triangle-observer ...
+    studies/compensation/compensation-table.py runs/wake/triangle-none runs/wake/triangle-observer ...
 
 With --plot RUN_DIR/run-NN/VEHICLE.csv OUT.png: the vehicle's estimated external force
 (est_f*) against the simulator's aerodynamic force (aero_f*) over time.
