@@ -6,11 +6,14 @@
 #                                      module + browser replay (Node.js/npm, Chromium) +
 #                                      campaigns (Slurm, munge, Dask, Optuna)
 #   scripts/install-deps.sh --with-ros also the ROS 1 packages for ros/
+#   scripts/install-deps.sh --with-ros2
+#                                      also the DDS packages of the ROS 2 interface ros2/
+#                                      (Cyclone DDS, Fast DDS, rosidl's .msg parser)
 #   scripts/install-deps.sh --with-aarch64
 #                                      also the aarch64 cross toolchain, qemu-user and the
 #                                      arm64 libraries of the onboard layers (docs/onboard.md);
 #                                      adds the arm64 architecture to dpkg
-# The flags combine (e.g. --with-ros --with-aarch64).
+# The flags combine (e.g. --with-ros --with-ros2 --with-aarch64).
 set -euo pipefail
 
 packages=(
@@ -40,6 +43,11 @@ ros_packages=(
   ros-message-generation python3-rosbag python3-rostopic python3-rosnode rosbash
   python3-geometry-msgs python3-sensor-msgs python3-nav-msgs libros-rosgraph-msgs-dev
 )
+# ROS 2 on DDS (ros2/, docs/ros2.md): Debian has no rclcpp, but it has the middleware ROS 2
+# runs on. Cyclone DDS 0.10 with its IDL compiler idlc (cyclonedds-tools) for the nodes, Fast
+# DDS 2.9 (libfastrtps-dev, libfastcdr-dev) for the test against an independent implementation,
+# rosidl's .msg parser (python3-rosidl) for the .msg -> IDL conversion.
+ros2_packages=(cyclonedds-dev cyclonedds-tools libfastrtps-dev libfastcdr-dev python3-rosidl)
 # The onboard cross build (scripts/build-aarch64.sh): the compiler, the user-mode emulator that
 # runs its tests, and the arm64 builds of the libraries with code (Eigen, CLI11 and
 # nlohmann-json are header-only, Architecture: all, and come from the list above).
@@ -54,6 +62,7 @@ with_aarch64=0
 for arg in "$@"; do
   case "$arg" in
     --with-ros) packages+=("${ros_packages[@]}") ;;
+    --with-ros2) packages+=("${ros2_packages[@]}") ;;
     --with-aarch64) packages+=("${aarch64_packages[@]}"); with_aarch64=1 ;;
     *) echo "install-deps: unknown argument $arg" >&2; exit 2 ;;
   esac
