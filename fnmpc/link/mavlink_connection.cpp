@@ -42,14 +42,8 @@ bool MavlinkConnection::Send(const mavlink::Message& message) {
 
 bool MavlinkConnection::SendOther(std::uint32_t message_id, std::uint8_t crc_extra,
                                   std::span<const std::uint8_t> payload) {
-  mavlink::FrameSpec spec;
-  spec.sequence = encoder_.sequence();
-  spec.system_id = encoder_.system_id();
-  spec.component_id = encoder_.component_id();
-  spec.message_id = message_id;
-  spec.crc_extra = crc_extra;
-  const std::size_t n = mavlink::WriteFrame(spec, payload, frame_buffer_);
-  if (n > 0) encoder_.set_sequence(static_cast<std::uint8_t>(spec.sequence + 1));
+  UpdateSigningTime();
+  const std::size_t n = encoder_.EncodePayload(message_id, crc_extra, payload, frame_buffer_);
   const bool sent =
       n > 0 && transport_->Write(std::span<const std::uint8_t>(frame_buffer_.data(), n));
   ++(sent ? frames_sent_ : send_failures_);

@@ -33,9 +33,9 @@ class MavlinkConnection {
   /// send_failures(); the frame's sequence number is used up). Throws what the transport
   /// throws on a fatal error.
   bool Send(const mavlink::Message& message);
-  /// Writes one unsigned frame of a message this codec does not decode: id, its CRC_EXTRA and
-  /// the payload as given (the simulator's endpoint plays an autopilot's other traffic with
-  /// it). Same counting and sequence numbers as Send.
+  /// Writes one frame of a message this codec does not decode: id, its CRC_EXTRA and the
+  /// packed payload (the simulator's endpoint plays an autopilot's other traffic with it).
+  /// Truncated, numbered, signed and counted as Send's frames (mavlink::Encoder::EncodePayload).
   bool SendOther(std::uint32_t message_id, std::uint8_t crc_extra,
                  std::span<const std::uint8_t> payload);
 

@@ -60,15 +60,21 @@ void Encoder::DisableSigning() {
 std::size_t Encoder::Encode(const Message& message, std::span<std::uint8_t> out) {
   std::array<std::uint8_t, kMaxPayloadLength> payload{};
   const std::size_t full = PackPayload(message, payload);
-  const std::size_t length =
-      TruncatedPayloadLength(std::span<const std::uint8_t>(payload.data(), full));
   const MessageInfo& info = InfoOf(message);
+  return EncodePayload(info.id, info.crc_extra, std::span<const std::uint8_t>(payload.data(), full),
+                       out);
+}
+
+std::size_t Encoder::EncodePayload(std::uint32_t message_id, std::uint8_t crc_extra,
+                                   std::span<const std::uint8_t> payload,
+                                   std::span<std::uint8_t> out) {
+  const std::size_t length = TruncatedPayloadLength(payload);
   FrameSpec spec;
   spec.sequence = sequence_;
   spec.system_id = system_id_;
   spec.component_id = component_id_;
-  spec.message_id = info.id;
-  spec.crc_extra = info.crc_extra;
+  spec.message_id = message_id;
+  spec.crc_extra = crc_extra;
   std::uint64_t timestamp = 0;
   if (signing_) {
     timestamp = signed_any_ && clock_ <= last_timestamp_ ? last_timestamp_ + 1 : clock_;
@@ -76,8 +82,7 @@ std::size_t Encoder::Encode(const Message& message, std::span<std::uint8_t> out)
     spec.link_id = link_id_;
     spec.timestamp = timestamp;
   }
-  const std::size_t written =
-      WriteFrame(spec, std::span<const std::uint8_t>(payload.data(), length), out);
+  const std::size_t written = WriteFrame(spec, payload.first(length), out);
   if (written == 0) return 0;
   ++sequence_;
   if (signing_) {

@@ -60,6 +60,11 @@ class Encoder {
   /// when `out` is too small (no sequence number or timestamp is used up then).
   /// kMaxFrameLength bytes are always enough.
   std::size_t Encode(const Message& message, std::span<std::uint8_t> out);
+  /// The same for a message this codec has no struct for: its id, CRC_EXTRA (from the
+  /// message's XML definition) and packed payload, which is truncated, numbered and signed
+  /// like every other frame.
+  std::size_t EncodePayload(std::uint32_t message_id, std::uint8_t crc_extra,
+                            std::span<const std::uint8_t> payload, std::span<std::uint8_t> out);
 
   /// Sequence number of the next frame.
   std::uint8_t sequence() const { return sequence_; }

@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <vector>
 
 #include "fnmpc/mavlink/crc.hpp"
@@ -82,6 +84,43 @@ TEST(SigningTest, KeyedParserRejectsUnsignedWrongKeyAndTamperedFrames) {
   EXPECT_EQ(parser.counters().frames_ok, 0U);
   // Still accepts a good one after all that
   EXPECT_EQ(Accepted(&parser, Signed(&sender, 104, TestKey())), 1U);
+}
+
+TEST(SigningTest, PayloadFramesAreNumberedTruncatedAndSignedLikeMessages) {
+  // Given a signing sender that writes a HEARTBEAT, then an EXTENDED_SYS_STATE (245,
+  // CRC_EXTRA 130) it has no struct for, then a HEARTBEAT
+  Encoder sender(3, 1);
+  sender.EnableSigning(TestKey(), 4);
+  sender.SetTimestamp(5000);
+  const Bytes first = EncodeToVector(&sender, Heartbeat{.mavlink_version = 3});
+  std::array<std::uint8_t, kMaxFrameLength> out{};
+  const std::array<std::uint8_t, 4> payload{0, 2, 0, 0};
+  const std::size_t n = sender.EncodePayload(245, 130, payload, out);
+  const Bytes third = EncodeToVector(&sender, Heartbeat{.mavlink_version = 3});
+  // Then the payload frame is truncated to 2 bytes, signed, between the two in sequence and
+  // timestamp, and its signature is the one of its bytes
+  ASSERT_EQ(n, kHeaderLength + 2 + kChecksumLength + kSignatureLength);
+  EXPECT_EQ(out[1], 2);
+  EXPECT_EQ(out[2], kIncompatFlagSigned);
+  EXPECT_EQ(out[4], static_cast<std::uint8_t>(first[4] + 1));
+  EXPECT_EQ(third[4], static_cast<std::uint8_t>(first[4] + 2));
+  const std::size_t sig_at = kHeaderLength + 2 + kChecksumLength;
+  EXPECT_EQ(out[sig_at], 4);
+  std::uint64_t timestamp = 0;
+  for (int i = 5; i >= 0; --i) timestamp = (timestamp << 8) | out[sig_at + 1 + i];
+  EXPECT_EQ(timestamp, 5001U);
+  const auto signature =
+      ComputeSignature(TestKey(), std::span<const std::uint8_t>(out.data(), sig_at), 4, timestamp);
+  EXPECT_TRUE(std::equal(signature.begin(), signature.end(), out.begin() + sig_at + 7));
+  // And a keyed parser still accepts the next HEARTBEAT after the unknown-id frame
+  Parser parser;
+  parser.SetSigningKey(TestKey());
+  Bytes stream = first;
+  stream.insert(stream.end(), out.begin(), out.begin() + static_cast<std::ptrdiff_t>(n));
+  stream.insert(stream.end(), third.begin(), third.end());
+  EXPECT_EQ(Accepted(&parser, stream), 2U);
+  EXPECT_EQ(parser.counters().unknown_frames, 1U);
+  EXPECT_EQ(parser.counters().signature_failures, 0U);
 }
 
 TEST(SigningTest, TimestampsMustIncreasePerStream) {
