@@ -23,7 +23,7 @@
 #include <vector>
 
 #include "apps/fnmpc/commands.hpp"
-#include "apps/fnmpc/output_files.hpp"
+#include "fnmpc/config/output_files.hpp"
 #include "fnmpc/autopilot/measurement_messages.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
 #include "fnmpc/core/rotation.hpp"
@@ -288,7 +288,7 @@ int Bridge(const BridgeArgs& a) {
                                   {"first_bad_line", first_bad}, {"vehicles", vehicles}};
   if (!a.out.empty()) {
     std::filesystem::create_directories(a.out);
-    WriteFileAtomically(PathInside(a.out, "bridge-summary.json"), summary.dump(2) + "\n");
+    config::WriteFileAtomically(config::PathInside(a.out, "bridge-summary.json"), summary.dump(2) + "\n");
   }
   if (!a.quiet) {
     fmt::print(stderr, "[bridge] done: {} bad pose lines{}\n", bad_lines,

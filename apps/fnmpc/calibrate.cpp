@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "apps/fnmpc/commands.hpp"
-#include "apps/fnmpc/output_files.hpp"
+#include "fnmpc/config/output_files.hpp"
 #include "apps/fnmpc/sysid_report.hpp"
 #include "fnmpc/config/csv_reader.hpp"
 #include "fnmpc/config/vehicle_yaml.hpp"
@@ -146,7 +146,7 @@ int RunCalibrate(const CalibrateOptions& o) {
     j["windows"] = r.windows;
     j["window"] = o.settings.window;
     j["window_stride"] = o.settings.window_stride;
-    WriteFileAtomically((dir / "summary.json").string(), j.dump(2) + "\n");
+    config::WriteFileAtomically((dir / "summary.json").string(), j.dump(2) + "\n");
   }
   sysid_report::Finalize(dir, final_dir, o.plots);
   config::SaveVehicleFile(out, o.output);

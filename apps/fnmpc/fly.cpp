@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "apps/fnmpc/commands.hpp"
-#include "apps/fnmpc/output_files.hpp"
+#include "fnmpc/config/output_files.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
 #include "fnmpc/onboard/controller_setup.hpp"
 #include "fnmpc/onboard/onboard_link.hpp"
@@ -54,9 +54,9 @@ class FlyLog {
  public:
   FlyLog(const std::string& dir, const std::string& vehicle, bool quiet)
       : label_("[fly " + vehicle + "]"), quiet_(quiet) {
-    csv_ = std::fopen(PathInside(dir, vehicle + ".csv").c_str(), "w");
+    csv_ = std::fopen(config::PathInside(dir, vehicle + ".csv").c_str(), "w");
     if (csv_ == nullptr) {
-      throw std::runtime_error(PathInside(dir, vehicle + ".csv") + ": cannot write");
+      throw std::runtime_error(config::PathInside(dir, vehicle + ".csv") + ": cannot write");
     }
     std::fputs(
         "t,phase,session,sent,thrust_n,normalised_thrust,roll,pitch,yaw,nmpc,solver_time_s,"
@@ -213,7 +213,7 @@ int Fly(const FlyArgs& a) {
     summary["error"] =
         fmt::format("no control tick from the autopilot for {:.1f} s", a.lockstep_timeout);
   }
-  WriteFileAtomically(PathInside(dir, "fly-summary.json"), summary.dump(2) + "\n");
+  config::WriteFileAtomically(config::PathInside(dir, "fly-summary.json"), summary.dump(2) + "\n");
   log.Say(fmt::format("stopped: {}; {} steps, {} overruns; log {}", link.stop_reason(), steps,
                       overruns, dir));
   if (g_stop_signal != 0) return 128 + static_cast<int>(g_stop_signal);

@@ -19,7 +19,7 @@
 #include <vector>
 
 #include "apps/fnmpc/commands.hpp"
-#include "apps/fnmpc/output_files.hpp"
+#include "fnmpc/config/output_files.hpp"
 #include "fnmpc/core/rotation.hpp"
 #include "fnmpc/mavlink/frame_conversions.hpp"
 #include "fnmpc/ulog/reader.hpp"
@@ -575,12 +575,12 @@ int RunImportUlog(const ImportOptions& o) {
 
   // ---- write ----
   fs::create_directories(o.output);
-  const std::string steps_path = PathInside(o.output, "attitude_steps.csv");
-  WriteFileAtomically(
+  const std::string steps_path = config::PathInside(o.output, "attitude_steps.csv");
+  config::WriteFileAtomically(
       steps_path, Csv({"t", "roll_ref", "pitch_ref", "yaw_ref", "roll", "pitch", "yaw"}, steps));
   nlohmann::json files = {{"attitude_steps", "attitude_steps.csv"}};
   if (!fl[0].empty()) {
-    WriteFileAtomically(PathInside(o.output, "flight.csv"),
+    config::WriteFileAtomically(config::PathInside(o.output, "flight.csv"),
                         Csv({"t", "x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw",
                              "thrust_cmd", "roll_cmd", "pitch_cmd", "yaw_cmd", "voltage"},
                             fl));
@@ -597,7 +597,7 @@ int RunImportUlog(const ImportOptions& o) {
       "world ENU (x east, y north, z up), body FLU; angles ZYX roll, pitch, yaw [rad]; t [s] "
       "since the flight controller booted";
   summary["notes"] = notes;
-  WriteFileAtomically(PathInside(o.output, "summary.json"), summary.dump(2) + "\n");
+  config::WriteFileAtomically(config::PathInside(o.output, "summary.json"), summary.dump(2) + "\n");
 
   // ---- print ----
   fmt::print(

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "apps/fnmpc/commands.hpp"
-#include "apps/fnmpc/run_folder.hpp"
+#include "fnmpc/experiment/run_folder.hpp"
 
 namespace fnmpc::app {
 namespace {
@@ -22,7 +22,7 @@ struct MergeArgs {
 int Merge(const MergeArgs& a) {
   // Checks every shard, writes beside -o and renames into place: a refused or failed merge
   // leaves -o as it was.
-  const nlohmann::json summary = MergeRunFolders(a.shards, a.out, a.overwrite);
+  const nlohmann::json summary = experiment::MergeRunFolders(a.shards, a.out, a.overwrite);
   fmt::print("{}\n", a.out);
   const auto failures = summary.value("failures", nlohmann::json::array());
   for (const auto& f : failures) {

@@ -13,10 +13,10 @@
 #include <thread>
 
 #include "apps/fnmpc/commands.hpp"
-#include "apps/fnmpc/output_files.hpp"
-#include "apps/fnmpc/run_folder.hpp"
-#include "apps/fnmpc/scenario_runner.hpp"
+#include "fnmpc/config/output_files.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/experiment/run_folder.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 #include "fnmpc/onboard/formation_print.hpp"
 
 namespace fnmpc::app {
@@ -52,7 +52,7 @@ int Run(const RunArgs& a) {
   config::ScenarioConfig sc = config::LoadScenarioFile(a.scenario);
   if (a.duration_option != nullptr && a.duration_option->count() > 0) {
     config::CheckDurationFlag(sc, a.duration);
-    sc = Shortened(sc, a.duration);
+    sc = experiment::Shortened(sc, a.duration);
   }
   if (!a.downwash.empty()) {
     sc.downwash = a.downwash == "on";
@@ -76,7 +76,7 @@ int Run(const RunArgs& a) {
     const std::time_t now = std::time(nullptr);
     dir = fmt::format("runs/{}-{:%Y%m%d-%H%M%S}", sc.name, fmt::localtime(now));
   }
-  RunFolderOptions options;
+  experiment::RunFolderOptions options;
   options.runs = a.runs;
   options.jobs = a.jobs;
   options.threads = a.threads > 0 ? a.threads : AutoThreads(a.jobs);
@@ -86,20 +86,20 @@ int Run(const RunArgs& a) {
   options.stop = &g_stop_signal;
   options.timing = a.timing == "on";
   options.resume = a.resume;
-  if (!a.shard.empty()) options.shard = ParseShard(a.shard);
+  if (!a.shard.empty()) options.shard = experiment::ParseShard(a.shard);
   if (options.shard.index >= a.runs) {
     throw std::invalid_argument(fmt::format("--shard {}: shard {} has no run of --runs {}", a.shard,
                                             options.shard.index, a.runs));
   }
   if (a.resume) {
-    CheckResumable(sc, options, dir);
+    experiment::CheckResumable(sc, options, dir);
   } else {
-    PrepareRunFolder(dir, a.overwrite);
+    experiment::PrepareRunFolder(dir, a.overwrite);
   }
   // Ctrl-C / SIGTERM: the current run finishes its physics step, writes what it has and the
   // folder is marked incomplete.
   StopSignalScope stop_scope;
-  const nlohmann::json summary = RunFolder(sc, options, dir);
+  const nlohmann::json summary = experiment::RunFolder(sc, options, dir);
   stop_scope.Restore();
   bool sim_failed = false;
   for (const auto& r : summary.value("run_summaries", nlohmann::json::array())) {
@@ -112,7 +112,7 @@ int Run(const RunArgs& a) {
                "fnmpc run: interrupted (signal {}); {} of {} runs complete, {} marked "
                "\"complete\": false\n",
                static_cast<int>(g_stop_signal), runs_done == 0 ? 0 : runs_done - 1, a.runs,
-               PathInside(dir, "summary.json"));
+               config::PathInside(dir, "summary.json"));
     return 128 + static_cast<int>(g_stop_signal);
   }
   if (sim_failed) return kExitSimulationError;

@@ -22,13 +22,13 @@
 #include <vector>
 
 #include "apps/fnmpc/commands.hpp"
-#include "apps/fnmpc/output_files.hpp"
-#include "apps/fnmpc/scenario_runner.hpp"
 #include "fnmpc/autopilot/emulated_autopilot.hpp"
 #include "fnmpc/autopilot/measurement_messages.hpp"
+#include "fnmpc/config/output_files.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
 #include "fnmpc/config/settings_yaml.hpp"
 #include "fnmpc/core/rotation.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 #include "fnmpc/link/link_address.hpp"
 #include "fnmpc/link/mavlink_connection.hpp"
 #include "fnmpc/link/signing_key.hpp"
@@ -156,7 +156,7 @@ int SimLink(const SimLinkArgs& a) {
 
   // The world as `fnmpc run` builds it; the simulator's attitude controller lands a vehicle
   // whose setpoints stop after the emulated autopilot's own timeout.
-  sim::WorldConfig wc = WorldConfigFor(sc, seed);
+  sim::WorldConfig wc = experiment::WorldConfigFor(sc, seed);
   wc.command_timeout.enabled = true;
   wc.command_timeout.timeout = es.setpoint_timeout;
   sim::World world(wc);
@@ -175,7 +175,7 @@ int SimLink(const SimLinkArgs& a) {
     autopilot::EmulatedAutopilotSettings s = es;
     s.system_id = autopilot::SystemIdOf(i);
     v[i].autopilot = std::make_unique<EmulatedAutopilot>(s);
-    const std::string csv = PathInside(dir, sc.vehicles[i].name + ".csv");
+    const std::string csv = config::PathInside(dir, sc.vehicles[i].name + ".csv");
     v[i].csv = std::fopen(csv.c_str(), "w");
     if (v[i].csv == nullptr) throw std::runtime_error(csv + ": cannot write");
     std::fputs("t,x,y,z,yaw,armed,mode,flying,formation_error\n", v[i].csv);
@@ -466,7 +466,7 @@ int SimLink(const SimLinkArgs& a) {
                                   {"max_formation_error_m", Num(max_worst)},
                                   {"every_vehicle_armed_flew_and_landed", all_flew},
                                   {"vehicles", vehicles}};
-  WriteFileAtomically(PathInside(dir, "summary.json"), summary.dump(2) + "\n");
+  config::WriteFileAtomically(config::PathInside(dir, "summary.json"), summary.dump(2) + "\n");
   fmt::print("{}\n", dir);
   if (!a.quiet) {
     fmt::print(stderr,

@@ -20,7 +20,7 @@
 #include <vector>
 
 #include "apps/fnmpc/commands.hpp"
-#include "apps/fnmpc/output_files.hpp"
+#include "fnmpc/config/output_files.hpp"
 #include "apps/fnmpc/sysid_report.hpp"
 #include "fnmpc/config/campaign_yaml.hpp"
 #include "fnmpc/config/csv_reader.hpp"
@@ -543,7 +543,7 @@ int RunSysid(const SysidOptions& o) {
     sane = sane && s.Passed();
   }
   j["complete"] = complete;
-  WriteFileAtomically((dir / "summary.json").string(), j.dump(2) + "\n");
+  config::WriteFileAtomically((dir / "summary.json").string(), j.dump(2) + "\n");
   sysid_report::Finalize(dir, final_dir, o.plots);
 
   if (complete) {
@@ -857,7 +857,7 @@ int RunSynth(const SysidOptions& o) {
         << "  runs: {x: pendulum_x.csv, y: pendulum_y.csv, z: pendulum_z.csv}\n"
         << "attitude_steps: attitude_steps.csv\n"
         << "flight: flight.csv\n";
-    WriteFileAtomically((dir / "campaign.yaml").string(), out.str());
+    config::WriteFileAtomically((dir / "campaign.yaml").string(), out.str());
   }
   config::SaveVehicleFile(v, (dir / "truth.yaml").string());
   fmt::print("{}: synthetic campaign (campaign.yaml, truth.yaml)\n", dir.string());

@@ -12,8 +12,8 @@
 #include <nlohmann/json.hpp>
 
 #include "apps/fnmpc/commands.hpp"
-#include "apps/fnmpc/output_files.hpp"
 #include "apps/fnmpc/process.hpp"
+#include "fnmpc/config/output_files.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
 #include "fnmpc/config/settings_doc.hpp"
 
@@ -60,7 +60,7 @@ void ClaimTuneFolder(const std::string& out) {
   if (fs::exists(out, ec) && !fs::is_directory(out, ec)) {
     throw std::runtime_error(out + ": exists and is not a folder");
   }
-  const std::string marker = PathInside(out, kTuneMarker);
+  const std::string marker = config::PathInside(out, kTuneMarker);
   if (fs::is_directory(out, ec) && !fs::is_empty(out, ec) && !fs::is_regular_file(marker, ec)) {
     throw std::runtime_error(
         out + ": not empty and not an output folder of `fnmpc tune` (no " + kTuneMarker +
@@ -69,15 +69,15 @@ void ClaimTuneFolder(const std::string& out) {
   }
   fs::create_directories(out, ec);
   if (ec) throw std::runtime_error(out + ": cannot create the folder: " + ec.message());
-  WriteFileAtomically(marker, "fnmpc tune output folder (docs/tuning.md)\n");
+  config::WriteFileAtomically(marker, "fnmpc tune output folder (docs/tuning.md)\n");
 }
 
 int Tune(const TuneArgs& a) {
   std::vector<std::string> every = a.scenarios;
   every.insert(every.end(), a.held_out.begin(), a.held_out.end());
   ClaimTuneFolder(a.out);
-  const std::string weights_file = PathInside(a.out, "effective-weights.json");
-  WriteFileAtomically(weights_file, EffectiveFollowerWeights(every).dump(2) + "\n");
+  const std::string weights_file = config::PathInside(a.out, "effective-weights.json");
+  config::WriteFileAtomically(weights_file, EffectiveFollowerWeights(every).dump(2) + "\n");
   std::error_code ec;
   const std::string self = std::filesystem::read_symlink("/proc/self/exe", ec).string();
   std::vector<std::string> argv = {"/usr/bin/python3",

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "apps/fnmpc/output_files.hpp"
+#include "fnmpc/config/output_files.hpp"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -8,7 +8,7 @@
 #include <cstring>
 #include <stdexcept>
 
-namespace fnmpc::app {
+namespace fnmpc::config {
 
 void ThrowFileError(const std::string& path, const std::string& what, int err) {
   throw std::runtime_error(path + ": " + what + ": " + std::strerror(err));
@@ -86,4 +86,4 @@ void CheckedFile::Finish() {
   }
 }
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::config

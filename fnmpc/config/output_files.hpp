@@ -7,7 +7,7 @@
 #include <string>
 #include <string_view>
 
-namespace fnmpc::app {
+namespace fnmpc::config {
 
 /// `dir`/`name` after checking that `name` is a plain file name (no '/', not "." or "..",
 /// not empty) so that the result lies inside `dir`; throws std::runtime_error otherwise.
@@ -44,4 +44,4 @@ class CheckedFile {
 /// Throws std::runtime_error "path: what: <errno text>".
 [[noreturn]] void ThrowFileError(const std::string& path, const std::string& what, int err);
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::config

@@ -11,7 +11,7 @@
 #include "fnmpc/core/rotation.hpp"
 #include "fnmpc/core/sensors.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 /// The scenario's faults as `fnmpc run` applies them (config::ScenarioFaults): measurement
 /// filters (dropout windows, outliers) with their own seeded stream, the kill and motors-off
@@ -95,4 +95,4 @@ class FaultInjector {
   std::uniform_real_distribution<double> uniform_{0.0, 1.0};
 };
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "apps/fnmpc/folder_manifest.hpp"
+#include "fnmpc/experiment/folder_manifest.hpp"
 
 #include <fmt/core.h>
 
@@ -15,10 +15,10 @@
 #include <stdexcept>
 #include <system_error>
 
-#include "apps/fnmpc/output_files.hpp"
+#include "fnmpc/config/output_files.hpp"
 #include "fnmpc/mavlink/sha256.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 namespace {
 namespace fs = std::filesystem;
@@ -45,7 +45,7 @@ bool SafeRelativePath(const std::string& path) {
   return true;
 }
 
-std::string ManifestPath(const std::string& dir) { return PathInside(dir, kManifestName); }
+std::string ManifestPath(const std::string& dir) { return config::PathInside(dir, kManifestName); }
 
 /// The listed path's folders below `dir` are real folders (no symbolic link leads out).
 void CheckNoLinkOnTheWay(const std::string& dir, const std::string& path) {
@@ -167,7 +167,7 @@ std::string Line(const std::string& path, const ManifestEntry& e) {
 void FolderManifest::Write(const std::string& dir) const {
   std::string text = std::string(kHeader) + "\n";
   for (const auto& [path, e] : entries_) text += Line(path, e);
-  WriteFileAtomically(ManifestPath(dir), text);
+  config::WriteFileAtomically(ManifestPath(dir), text);
 }
 
 void FolderManifest::Append(const std::string& dir, const std::vector<std::string>& paths) const {
@@ -179,11 +179,12 @@ void FolderManifest::Append(const std::string& dir, const std::vector<std::strin
   }
   const std::string file = ManifestPath(dir);
   std::FILE* f = std::fopen(file.c_str(), "ab");
-  if (f == nullptr) ThrowFileError(file, "cannot append", errno);
+  if (f == nullptr) config::ThrowFileError(file, "cannot append", errno);
   const bool written = std::fwrite(line.data(), 1, line.size(), f) == line.size() &&
                        std::fflush(f) == 0 && ::fsync(::fileno(f)) == 0;
   const int err = errno;
-  if (std::fclose(f) != 0 || !written) ThrowFileError(file, "write failed", written ? errno : err);
+  if (std::fclose(f) != 0 || !written)
+    config::ThrowFileError(file, "write failed", written ? errno : err);
 }
 
 int DeleteListedFiles(const std::string& dir, const FolderManifest& manifest,
@@ -248,4 +249,4 @@ std::vector<std::string> UnlistedFiles(const std::string& dir, const FolderManif
   return extra;
 }
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 /// The manifest's file name inside the folder it describes.
 inline constexpr const char* kManifestName = ".fnmpc-manifest";
@@ -74,4 +74,4 @@ int DeleteListedFiles(const std::string& dir, const FolderManifest& manifest,
 /// folder fnmpc wrote.
 std::vector<std::string> UnlistedFiles(const std::string& dir, const FolderManifest& manifest);
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "apps/fnmpc/measurement_feeder.hpp"
+#include "fnmpc/experiment/measurement_feeder.hpp"
 
 #include <algorithm>
 #include <bit>
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 namespace {
 
 // A waiting thread spins this many times before it sleeps (the feeding thread) or yields
@@ -85,4 +85,4 @@ void MeasurementFeeder::Consume() {
   }
 }
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

@@ -11,7 +11,7 @@
 
 #include "fnmpc/core/sensors.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 /// Processes measurements on a thread of its own, in the order they were pushed, while the
 /// pushing thread goes on (it steps the world). One producer, one consumer, a fixed ring;
@@ -72,4 +72,4 @@ class MeasurementFeeder {
   std::thread thread_;
 };
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

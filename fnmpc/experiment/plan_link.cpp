@@ -1,12 +1,12 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "apps/fnmpc/plan_link.hpp"
+#include "fnmpc/experiment/plan_link.hpp"
 
 #include <algorithm>
 #include <iterator>
 #include <stdexcept>
 #include <string>
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 namespace {
 /// Mixed into the run seed: the link's stream differs from every other stream of the run.
@@ -51,4 +51,4 @@ void PlanLink::Send(const formation::PlanMessage& m, double t) {
   }
 }
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

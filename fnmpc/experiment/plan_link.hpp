@@ -17,7 +17,7 @@
 /// transmission ends, and each receiver loses it with probability `loss_rate`. The loss draws
 /// come from their own random stream seeded by the run seed (the world's streams are not
 /// touched), in a fixed order: the same seed gives the same deliveries.
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 /// Messages of one run (summary.json `link`).
 struct LinkStatistics {
@@ -65,4 +65,4 @@ class PlanLink {
   LinkStatistics stats_;
 };
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "apps/fnmpc/run_folder.hpp"
+#include "fnmpc/experiment/run_folder.hpp"
 
 #include <fmt/core.h>
 
@@ -19,11 +19,11 @@
 #include <thread>
 #include <vector>
 
-#include "apps/fnmpc/folder_manifest.hpp"
-#include "apps/fnmpc/output_files.hpp"
-#include "apps/fnmpc/scenario_runner.hpp"
+#include "fnmpc/config/output_files.hpp"
+#include "fnmpc/experiment/folder_manifest.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 namespace {
 namespace fs = std::filesystem;
@@ -62,13 +62,13 @@ json ReadJson(const std::string& path) {
   }
 }
 void WriteSummary(const std::string& dir, const json& summary) {
-  WriteFileAtomically(PathInside(dir, "summary.json"),
-                      summary.dump(2, ' ', false, json::error_handler_t::replace) + "\n");
+  config::WriteFileAtomically(config::PathInside(dir, "summary.json"),
+                              summary.dump(2, ' ', false, json::error_handler_t::replace) + "\n");
 }
 
 /// A run's summary from an earlier attempt when it finished, else null.
 json FinishedRun(const std::string& dir, int r) {
-  const std::string path = PathInside(PathInside(dir, RunDir(r)), "summary.json");
+  const std::string path = config::PathInside(config::PathInside(dir, RunDir(r)), "summary.json");
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) return nullptr;
   json s = json::parse(ReadText(path), nullptr, false);
@@ -163,7 +163,7 @@ void CheckResumable(const config::ScenarioConfig& sc, const RunFolderOptions& op
                     const std::string& dir) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec) || fs::is_empty(dir, ec)) return;
-  const std::string path = PathInside(dir, "summary.json");
+  const std::string path = config::PathInside(dir, "summary.json");
   if (!fs::is_regular_file(path, ec)) {
     throw std::runtime_error(dir +
                              ": not a run folder of `fnmpc run` (no summary.json); "
@@ -192,8 +192,8 @@ void CheckResumable(const config::ScenarioConfig& sc, const RunFolderOptions& op
     throw std::runtime_error(path + ": key 'shard': missing in the folder");
   }
   if (!options.scenario_file.empty() &&
-      ReadText(PathInside(dir, "scenario.yaml")) != ReadText(options.scenario_file)) {
-    throw std::runtime_error(PathInside(dir, "scenario.yaml") + ": differs from " +
+      ReadText(config::PathInside(dir, "scenario.yaml")) != ReadText(options.scenario_file)) {
+    throw std::runtime_error(config::PathInside(dir, "scenario.yaml") + ": differs from " +
                              options.scenario_file + ": --resume continues only the same scenario");
   }
 }
@@ -244,9 +244,9 @@ json RunFolder(const config::ScenarioConfig& sc, const RunFolderOptions& options
   };
   if (!options.scenario_file.empty() && fs::is_regular_file(options.scenario_file)) {
     std::error_code ec;
-    if (!fs::equivalent(options.scenario_file, PathInside(dir, "scenario.yaml"), ec)) {
+    if (!fs::equivalent(options.scenario_file, config::PathInside(dir, "scenario.yaml"), ec)) {
       plan({"scenario.yaml"});
-      fs::copy_file(options.scenario_file, PathInside(dir, "scenario.yaml"),
+      fs::copy_file(options.scenario_file, config::PathInside(dir, "scenario.yaml"),
                     fs::copy_options::overwrite_existing);
       record({"scenario.yaml"});
     }
@@ -308,7 +308,7 @@ json RunFolder(const config::ScenarioConfig& sc, const RunFolderOptions& options
       o.timing = options.timing;
       const std::vector<std::string> files = RunFiles(sc, r);
       plan(files);
-      json s = RunScenario(sc, o, PathInside(dir, RunDir(r)));
+      json s = RunScenario(sc, o, config::PathInside(dir, RunDir(r)));
       record(files);
       s["dir"] = RunDir(r);
       const std::lock_guard<std::mutex> lock(print_mutex);
@@ -498,29 +498,29 @@ json Merge(const std::vector<std::string>& shards, const std::string& out, bool 
   std::vector<FolderManifest> manifests;
   for (const std::string& dir : shards) {
     manifests.push_back(VerifiedShard(dir));
-    summaries.push_back(ReadJson(PathInside(dir, "summary.json")));
+    summaries.push_back(ReadJson(config::PathInside(dir, "summary.json")));
   }
   // One experiment: the same identity and scenario file in every shard, every shard once.
   const json& first = summaries.front();
   if (!first.contains(kShardKey) || !first[kShardKey].is_string()) {
-    throw std::runtime_error(PathInside(shards.front(), "summary.json") +
+    throw std::runtime_error(config::PathInside(shards.front(), "summary.json") +
                              ": key 'shard': missing: not a shard folder (fnmpc run --shard)");
   }
   const Shard s0 = ParseShard(first[kShardKey].get<std::string>());
-  const std::string scenario_text = ReadText(PathInside(shards.front(), "scenario.yaml"));
+  const std::string scenario_text = ReadText(config::PathInside(shards.front(), "scenario.yaml"));
   std::vector<std::string> folder_of(static_cast<std::size_t>(s0.count));
   json identity;
   for (const char* key : {"scenario", "scenario_file", "runs_requested", "first_seed", "duration_s",
                           "reality", "downwash", "compensation", "timing"}) {
     if (!first.contains(key)) {
-      throw std::runtime_error(PathInside(shards.front(), "summary.json") + ": key '" + key +
-                               "': missing");
+      throw std::runtime_error(config::PathInside(shards.front(), "summary.json") + ": key '" +
+                               key + "': missing");
     }
     identity[key] = first[key];
   }
   for (std::size_t i = 0; i < shards.size(); ++i) {
     const json& s = summaries[i];
-    const std::string path = PathInside(shards[i], "summary.json");
+    const std::string path = config::PathInside(shards[i], "summary.json");
     const Shard shard = ParseShard(s.value(kShardKey, std::string("missing")));
     if (shard.count != s0.count) {
       throw std::runtime_error(fmt::format("{}: key 'shard': {}/{}, but {} is one of {}", path,
@@ -533,9 +533,9 @@ json Merge(const std::vector<std::string>& shards, const std::string& out, bool 
                                              value.dump(), shards.front()));
       }
     }
-    if (ReadText(PathInside(shards[i], "scenario.yaml")) != scenario_text) {
-      throw std::runtime_error(PathInside(shards[i], "scenario.yaml") + ": differs from " +
-                               PathInside(shards.front(), "scenario.yaml"));
+    if (ReadText(config::PathInside(shards[i], "scenario.yaml")) != scenario_text) {
+      throw std::runtime_error(config::PathInside(shards[i], "scenario.yaml") + ": differs from " +
+                               config::PathInside(shards.front(), "scenario.yaml"));
     }
     std::string& slot = folder_of[static_cast<std::size_t>(shard.index)];
     if (!slot.empty()) {
@@ -559,7 +559,7 @@ json Merge(const std::vector<std::string>& shards, const std::string& out, bool 
       int r = -1;
       if (d.size() > 4) std::from_chars(d.data() + 4, d.data() + d.size(), r);
       if (r < 1 || r > total_runs) {
-        throw std::runtime_error(PathInside(shards[i], "summary.json") + ": run '" + d +
+        throw std::runtime_error(config::PathInside(shards[i], "summary.json") + ": run '" + d +
                                  "' is not one of the experiment's");
       }
       runs[static_cast<std::size_t>(r - 1)] = run;
@@ -603,7 +603,7 @@ json Merge(const std::vector<std::string>& shards, const std::string& out, bool 
   const std::string t = tmp.string();
   try {
     FolderManifest merged;
-    WriteFileAtomically(PathInside(t, "scenario.yaml"), scenario_text);
+    config::WriteFileAtomically(config::PathInside(t, "scenario.yaml"), scenario_text);
     merged.Record(t, "scenario.yaml");
     for (int r = 0; r < total_runs; ++r) {
       const std::size_t s = static_cast<std::size_t>(r % s0.count);
@@ -616,7 +616,7 @@ json Merge(const std::vector<std::string>& shards, const std::string& out, bool 
         if (TextSha256(bytes) != e.sha256) {
           throw std::runtime_error(folder_of[s] + "/" + path + ": changed while merging");
         }
-        WriteFileAtomically(t + "/" + path, bytes);
+        config::WriteFileAtomically(t + "/" + path, bytes);
         merged.Record(t, path);
         if (merged.entries().at(path).sha256 != e.sha256) {
           throw std::runtime_error(t + "/" + path + ": the copy differs from its shard's file");
@@ -648,7 +648,7 @@ json Merge(const std::vector<std::string>& shards, const std::string& out, bool 
       }
       DeleteListedFiles(old.string(), old_manifest);
       std::error_code ec;
-      fs::remove(PathInside(old.string(), kManifestName), ec);
+      fs::remove(config::PathInside(old.string(), kManifestName), ec);
       if (!fs::remove(old, ec)) {
         fmt::print(stderr,
                    "fnmpc merge: warning: {} (the earlier {}) is not empty; left as it is\n",
@@ -668,4 +668,4 @@ json Merge(const std::vector<std::string>& shards, const std::string& out, bool 
 }
 }  // namespace
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

@@ -12,7 +12,7 @@
 /// The runs of a run folder as `fnmpc run` does them (scenario.yaml, run-NN/ with one CSV
 /// per vehicle and a summary.json per run, the aggregated summary.json); shared by the CLI
 /// and the Python module so both produce the same folder for the same seed.
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 /// A deterministic slice of a folder's runs: run r (0-based) belongs to shard r % count.
 /// `sharded` false: the whole folder (no "shard" key); a shard 0/1 is a shard folder all the
@@ -90,4 +90,4 @@ nlohmann::json RunFolder(const config::ScenarioConfig& scenario, const RunFolder
 nlohmann::json MergeRunFolders(const std::vector<std::string>& shards, const std::string& out,
                                bool overwrite = false);
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

@@ -1,14 +1,15 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "apps/fnmpc/run_log.hpp"
+#include "fnmpc/experiment/run_log.hpp"
 
 #include <iterator>
 #include <stdexcept>
 
 #include "fnmpc/config/vehicle_yaml.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
-VehicleCsvLog::VehicleCsvLog(const std::string& path) : file_(std::make_unique<CheckedFile>(path)) {
+VehicleCsvLog::VehicleCsvLog(const std::string& path)
+    : file_(std::make_unique<config::CheckedFile>(path)) {
   file_->Write(kVehicleLogCsvHeader);
 }
 
@@ -50,7 +51,7 @@ void VehicleCsvLog::Finish() { file_->Finish(); }
 void WritePlantFiles(const config::ScenarioConfig& sc, const sim::WorldConfig& world,
                      const std::string& dir) {
   for (std::size_t i = 0; i < sc.vehicles.size(); ++i) {
-    const std::string path = PathInside(dir, "plant-" + sc.vehicles[i].name + ".yaml");
+    const std::string path = config::PathInside(dir, "plant-" + sc.vehicles[i].name + ".yaml");
     try {
       config::SaveVehicleFile(world.vehicles[i].params, path);
     } catch (const std::exception& e) {
@@ -59,4 +60,4 @@ void WritePlantFiles(const config::ScenarioConfig& sc, const sim::WorldConfig& w
   }
 }
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

@@ -9,7 +9,7 @@
 #include <string>
 #include <string_view>
 
-#include "apps/fnmpc/output_files.hpp"
+#include "fnmpc/config/output_files.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
 #include "fnmpc/estimation/vehicle_ekf.hpp"
 #include "fnmpc/formation/vehicle_controller.hpp"
@@ -17,7 +17,7 @@
 
 /// The files `fnmpc run` writes while it flies: one CSV log per vehicle and, with reality on,
 /// the true plant of each vehicle.
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 /// Header line of the per-vehicle CSV log (`<vehicle>.csv`) that `fnmpc run` writes and
 /// `fnmpc report` reads; shared with the ROS bag converter so both write the same columns.
@@ -61,7 +61,7 @@ class VehicleCsvLog {
   void Finish();
 
  private:
-  std::unique_ptr<CheckedFile> file_;
+  std::unique_ptr<config::CheckedFile> file_;
   fmt::memory_buffer row_;  // one CSV row, reused
 };
 
@@ -70,4 +70,4 @@ class VehicleCsvLog {
 void WritePlantFiles(const config::ScenarioConfig& sc, const sim::WorldConfig& world,
                      const std::string& dir);
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "apps/fnmpc/run_loop.hpp"
+#include "fnmpc/experiment/run_loop.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -10,17 +10,17 @@
 #include <stdexcept>
 #include <string_view>
 
-#include "apps/fnmpc/fault_injector.hpp"
-#include "apps/fnmpc/measurement_feeder.hpp"
-#include "apps/fnmpc/output_files.hpp"
-#include "apps/fnmpc/plan_link.hpp"
-#include "apps/fnmpc/run_log.hpp"
-#include "apps/fnmpc/worker_pool.hpp"
+#include "fnmpc/config/output_files.hpp"
+#include "fnmpc/experiment/fault_injector.hpp"
+#include "fnmpc/experiment/measurement_feeder.hpp"
+#include "fnmpc/experiment/plan_link.hpp"
+#include "fnmpc/experiment/run_log.hpp"
+#include "fnmpc/experiment/worker_pool.hpp"
 #include "fnmpc/formation/trajectory.hpp"
 #include "fnmpc/formation/vehicle_controller.hpp"
 #include "fnmpc/sim/world.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 using formation::FlightPhase;
 
@@ -79,7 +79,7 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
   for (int i = 0; i < nv; ++i) {
     const auto& v = sc.vehicles[i];
     VehicleRecord& L = rec.vehicles[i];
-    csv.emplace_back(PathInside(dir, v.name + ".csv"));
+    csv.emplace_back(config::PathInside(dir, v.name + ".csv"));
     L.nb_errors.resize(v.neighbours.size());
     L.nb_steady.resize(v.neighbours.size());
   }
@@ -475,4 +475,4 @@ RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& opti
   return rec;
 }
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

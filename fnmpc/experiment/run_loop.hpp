@@ -3,10 +3,10 @@
 
 #include <string>
 
-#include "apps/fnmpc/run_record.hpp"
-#include "apps/fnmpc/scenario_runner.hpp"
+#include "fnmpc/experiment/run_record.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 /// The closed loop of RunScenario: the world (1 ms physics, all sensors, the autopilots'
 /// command-timeout failsafe on), one controller per flying vehicle every sample time, the
@@ -16,4 +16,4 @@ namespace fnmpc::app {
 RunRecord RunClosedLoop(const config::ScenarioConfig& sc, const RunOptions& options,
                         const std::string& dir);
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "apps/fnmpc/run_metrics.hpp"
+#include "fnmpc/experiment/run_metrics.hpp"
 
 #include <fmt/core.h>
 
@@ -10,7 +10,7 @@
 #include "fnmpc/formation/neighbour_thrust.hpp"
 #include "fnmpc/onboard/formation_print.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 namespace {
 
@@ -523,4 +523,4 @@ json AggregateRuns(const std::vector<json>& runs) {
   return a;
 }
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

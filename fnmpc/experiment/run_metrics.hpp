@@ -5,10 +5,10 @@
 #include <string>
 #include <vector>
 
-#include "apps/fnmpc/run_record.hpp"
-#include "apps/fnmpc/scenario_runner.hpp"
+#include "fnmpc/experiment/run_record.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 /// The metrics of one run (summary.json, docs/scenarios.md "Run folder and metrics") from
 /// what the closed loop recorded: per vehicle, per fault, the failures and the top-level
@@ -16,4 +16,4 @@ namespace fnmpc::app {
 nlohmann::json RunSummary(const config::ScenarioConfig& sc, const RunOptions& options,
                           const RunRecord& record, std::vector<std::string>* fault_lines);
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

@@ -7,14 +7,14 @@
 #include <string>
 #include <vector>
 
-#include "apps/fnmpc/plan_link.hpp"
 #include "fnmpc/core/types.hpp"
+#include "fnmpc/experiment/plan_link.hpp"
 #include "fnmpc/formation/neighbour_limits.hpp"
 #include "fnmpc/sim/world.hpp"
 
 /// What the closed loop of `fnmpc run` records for the run's metrics (run_loop.cpp writes it,
 /// run_metrics.cpp reads it).
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 /// What one vehicle did, accumulated at every control step.
 struct VehicleRecord {
@@ -117,4 +117,4 @@ struct RunRecord {
   std::string sim_error;      ///< the simulator's instability report
 };
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

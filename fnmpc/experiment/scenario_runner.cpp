@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "apps/fnmpc/scenario_runner.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 
 #include <fmt/core.h>
 #include <fmt/ostream.h>
@@ -12,18 +12,18 @@
 #include <random>
 #include <stdexcept>
 
-#include "apps/fnmpc/output_files.hpp"
-#include "apps/fnmpc/run_loop.hpp"
-#include "apps/fnmpc/run_metrics.hpp"
+#include "fnmpc/config/output_files.hpp"
 #include "fnmpc/config/vehicle_yaml.hpp"
 #include "fnmpc/core/rotation.hpp"
+#include "fnmpc/experiment/run_loop.hpp"
+#include "fnmpc/experiment/run_metrics.hpp"
 #include "fnmpc/formation/trajectory.hpp"
 #include "fnmpc/formation/vehicle_controller.hpp"
 #include "fnmpc/model/true_plant.hpp"
 #include "fnmpc/onboard/formation_print.hpp"
 #include "fnmpc/sim/world.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 using json = nlohmann::json;
 
@@ -150,9 +150,9 @@ json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
   for (const std::string& line : fault_lines) {
     std::fprintf(stderr, "%s %s\n", options.label.c_str(), line.c_str());
   }
-  WriteFileAtomically(PathInside(dir, "summary.json"),
-                      s.dump(2, ' ', false, json::error_handler_t::replace) + "\n");
+  config::WriteFileAtomically(config::PathInside(dir, "summary.json"),
+                              s.dump(2, ' ', false, json::error_handler_t::replace) + "\n");
   return s;
 }
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

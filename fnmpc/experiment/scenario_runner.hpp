@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "apps/fnmpc/run_log.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/experiment/run_log.hpp"
 #include "fnmpc/formation/trajectory.hpp"
 #include "fnmpc/formation/vehicle_controller.hpp"
 #include "fnmpc/onboard/controller_setup.hpp"
@@ -17,7 +17,7 @@
 
 /// Closed loop of a formation scenario: MuJoCo World (1 ms physics, all sensors) plus one
 /// formation::VehicleController per flying vehicle (every Ts), CSV logs and metrics.
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 /// The world: every vehicle resting at its start, noise seeded from `seed`; with the
 /// scenario's reality on, ApplyReality's true plants and wind.
@@ -69,4 +69,4 @@ nlohmann::json AggregateRuns(const std::vector<nlohmann::json>& runs);
 /// leader's start.
 config::ScenarioConfig Shortened(const config::ScenarioConfig& scenario, double duration);
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

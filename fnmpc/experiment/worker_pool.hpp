@@ -10,7 +10,7 @@
 #include <type_traits>
 #include <vector>
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 
 /// A fixed set of worker threads, created once, that run f(i) for i = 0 .. n-1 (ForEach):
 /// the calling thread takes part, the indices are handed out one at a time (in any order, on
@@ -106,4 +106,4 @@ class WorkerPool {
   std::exception_ptr error_;
 };
 
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

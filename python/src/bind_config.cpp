@@ -7,10 +7,10 @@
 
 #include <string>
 
-#include "apps/fnmpc/scenario_runner.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
 #include "fnmpc/config/sensors_yaml.hpp"
 #include "fnmpc/config/vehicle_yaml.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 #include "python/src/bindings.hpp"
 
 namespace py = pybind11;
@@ -133,7 +133,7 @@ void BindScenario(py::module_& m) {
           "shortened",
           [](const ScenarioConfig& s, double duration) {
             config::CheckDurationFlag(s, duration);
-            return app::Shortened(s, duration);
+            return experiment::Shortened(s, duration);
           },
           py::arg("duration"),
           "A copy shortened to `duration` [s] (as `fnmpc run --duration`): the landing moves "

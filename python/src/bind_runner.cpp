@@ -1,12 +1,12 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// Closed-loop runs as `fnmpc run` does them (apps/fnmpc/run_folder.hpp). The summary comes
+// Closed-loop runs as `fnmpc run` does them (fnmpc/experiment/run_folder.hpp). The summary comes
 // back as JSON text so that Python parses exactly what summary.json holds; fnmpc.run()
 // (python/fnmpc/__init__.py) adds the logs as numpy structured arrays.
 #include <pybind11/stl.h>
 
 #include <string>
 
-#include "apps/fnmpc/run_folder.hpp"
+#include "fnmpc/experiment/run_folder.hpp"
 #include "python/src/bindings.hpp"
 
 namespace py = pybind11;
@@ -18,7 +18,7 @@ void BindRunner(py::module_& m) {
       "_run_folder",
       [](const config::ScenarioConfig& sc, const std::string& dir, int runs, std::int64_t seed,
          bool progress) {
-        app::RunFolderOptions o;
+        experiment::RunFolderOptions o;
         o.runs = runs;
         o.seed = seed;
         o.progress = progress;
@@ -26,7 +26,7 @@ void BindRunner(py::module_& m) {
         nlohmann::json summary;
         {
           py::gil_scoped_release release;
-          summary = app::RunFolder(sc, o, dir);
+          summary = experiment::RunFolder(sc, o, dir);
         }
         return summary.dump(2);
       },

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "apps/fnmpc/scenario_runner.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 #include "fnmpc/sim/world.hpp"
 #include "python/src/bindings.hpp"
 
@@ -107,7 +107,8 @@ void BindWorld(py::module_& m) {
   m.def(
       "world_config",
       [](const config::ScenarioConfig& sc, py::object seed) {
-        return app::WorldConfigFor(sc, seed.is_none() ? sc.seed : seed.cast<std::uint64_t>());
+        return experiment::WorldConfigFor(sc,
+                                          seed.is_none() ? sc.seed : seed.cast<std::uint64_t>());
       },
       py::arg("scenario"), py::arg("seed") = py::none(),
       "The world `fnmpc run` flies `scenario` in: every vehicle resting at its start, noise "
@@ -121,8 +122,8 @@ void BindWorld(py::module_& m) {
       .def_static(
           "from_scenario",
           [](const config::ScenarioConfig& sc, py::object seed) {
-            return std::make_unique<sim::World>(
-                app::WorldConfigFor(sc, seed.is_none() ? sc.seed : seed.cast<std::uint64_t>()));
+            return std::make_unique<sim::World>(experiment::WorldConfigFor(
+                sc, seed.is_none() ? sc.seed : seed.cast<std::uint64_t>()));
           },
           py::arg("scenario"), py::arg("seed") = py::none(), "World(world_config(scenario, seed)).")
       .def_property_readonly("time", &sim::World::time, "simulation time [s]")

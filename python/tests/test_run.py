@@ -43,7 +43,7 @@ def numbers_match(a, b, path=""):
 
 
 def printed(s):
-    """The CLI's result line of a run (apps/fnmpc/run_folder.cpp)."""
+    """The CLI's result line of a run (fnmpc/experiment/run_folder.cpp)."""
     return (f"{s['steady_state_formation_error_m']:.4f} {s['max_formation_error_m']:.3f} "
             f"{s['fallbacks']} {s['landed_safely']}")
 

@@ -2,7 +2,7 @@
 // Output paths stay inside their folder; a failed write (full disk, here a file size limit) is
 // an error naming the file and the errno text, and nothing half-written is left under the final
 // name (docs/failure.md "What is written").
-#include "apps/fnmpc/output_files.hpp"
+#include "fnmpc/config/output_files.hpp"
 
 #include <gtest/gtest.h>
 #include <sys/resource.h>
@@ -16,7 +16,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace fnmpc::app {
+namespace fnmpc::config {
 namespace {
 
 std::string Dir(const std::string& tag) {
@@ -99,4 +99,4 @@ TEST(OutputFilesTest, FullDiskIsAnErrorNamingTheFileAndReason) {
 }
 
 }  // namespace
-}  // namespace fnmpc::app
+}  // namespace fnmpc::config

@@ -2,7 +2,7 @@
 // The thread that feeds measurements to the controllers while the world
 // steps processes each measurement once, in push order, and TakeRest hands over exactly the
 // ones it has not processed.
-#include "apps/fnmpc/measurement_feeder.hpp"
+#include "fnmpc/experiment/measurement_feeder.hpp"
 
 #include <gtest/gtest.h>
 
@@ -14,7 +14,7 @@
 #include <thread>
 #include <vector>
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 namespace {
 
 Measurement Numbered(int n) {
@@ -131,4 +131,4 @@ TEST(MeasurementFeederTest, WakesFromSleepAndStopsWhenDestroyedIdleOrNeverUsed) 
 }
 
 }  // namespace
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

@@ -11,10 +11,10 @@
 #include <string>
 #include <vector>
 
-#include "apps/fnmpc/scenario_runner.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 namespace {
 
 /// A vehicle log without its wall-clock column (solver_time: the only one that differs
@@ -90,4 +90,4 @@ TEST(CooperativeFlightTest, EveryMessageLostFliesExactlyAsWake) {
 }
 
 }  // namespace
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

@@ -14,10 +14,10 @@
 #include <string>
 #include <vector>
 
-#include "apps/fnmpc/scenario_runner.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 namespace {
 
 using json = nlohmann::json;
@@ -241,4 +241,4 @@ TEST(FaultFlightTest, EveryStepFailingHandsEveryVehicleToTheFailsafe) {
 }
 
 }  // namespace
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

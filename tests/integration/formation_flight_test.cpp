@@ -9,10 +9,10 @@
 #include <filesystem>
 #include <string>
 
-#include "apps/fnmpc/scenario_runner.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 namespace {
 
 TEST(FormationFlightTest, ShortTriangleKeepsFormationAndLands) {
@@ -80,4 +80,4 @@ TEST(FormationFlightTest, FollowersSwappingSidesKeepTheCollisionRadius) {
 }
 
 }  // namespace
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

@@ -11,11 +11,11 @@
 #include <string>
 #include <vector>
 
-#include "apps/fnmpc/run_folder.hpp"
-#include "apps/fnmpc/scenario_runner.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/experiment/run_folder.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 namespace {
 
 using json = nlohmann::json;
@@ -182,4 +182,4 @@ TEST(RunJobsTest, ThreadsPerRunWriteTheSameFolderAsOneWithPlansAndSensorFaults) 
 }
 
 }  // namespace
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

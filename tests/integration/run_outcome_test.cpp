@@ -11,10 +11,10 @@
 #include <string>
 #include <vector>
 
-#include "apps/fnmpc/scenario_runner.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 namespace {
 
 using json = nlohmann::json;
@@ -229,4 +229,4 @@ TEST(ShortenedTest, KeepsTheLandingAllowanceAndMovesEveryLandingTime) {
 }
 
 }  // namespace
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

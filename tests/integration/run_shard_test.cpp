@@ -15,12 +15,12 @@
 #include <string>
 #include <vector>
 
-#include "apps/fnmpc/folder_manifest.hpp"
-#include "apps/fnmpc/run_folder.hpp"
-#include "apps/fnmpc/scenario_runner.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/experiment/folder_manifest.hpp"
+#include "fnmpc/experiment/run_folder.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 namespace {
 
 namespace fs = std::filesystem;
@@ -329,4 +329,4 @@ TEST_F(RunShardTest, ResumeRefusesAnotherExperimentsFolder) {
 }
 
 }  // namespace
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

@@ -14,10 +14,10 @@
 #include <string>
 #include <vector>
 
-#include "apps/fnmpc/scenario_runner.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 
-namespace fnmpc::app {
+namespace fnmpc::experiment {
 namespace {
 
 std::vector<std::string> Split(const std::string& line) {
@@ -94,4 +94,4 @@ TEST(WakeFlightTest, FollowerBelowLeaderFeelsAFluctuatingPushWithLateralComponen
 }
 
 }  // namespace
-}  // namespace fnmpc::app
+}  // namespace fnmpc::experiment

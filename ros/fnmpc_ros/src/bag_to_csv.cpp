@@ -16,9 +16,9 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
-#include "apps/fnmpc/scenario_runner.hpp"
 #include "conversions.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 
 namespace fnmpc::ros_bridge {
 namespace {
@@ -127,7 +127,7 @@ int Convert(const std::string& bag_file, const std::string& scenario_file, const
     const bool have_truth = !d.truth.empty();
     std::ofstream csv(dir + "/" + v.name + ".csv");
     if (!csv) throw std::runtime_error("cannot write " + dir + "/" + v.name + ".csv");
-    csv << app::kVehicleLogCsvHeader;
+    csv << experiment::kVehicleLogCsvHeader;
     std::vector<double> errors, steady_errors, tracking, solver_time;
     long fallbacks = 0, steps = 0;
     for (const auto& [stamp, sp] : d.setpoints) {

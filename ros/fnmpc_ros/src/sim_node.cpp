@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// sim_node: the MuJoCo world of a scenario (app::WorldConfigFor, as in `fnmpc run`).
+// sim_node: the MuJoCo world of a scenario (experiment::WorldConfigFor, as in `fnmpc run`).
 // Publishes every vehicle's sensor topics at their rates (each measurement when it is
 // delivered), its ground truth, and /clock; applies the vehicles' setpoints to the emulated
 // autopilots. Each period's SimSync carries the kinds of the measurements delivered to the
@@ -16,9 +16,9 @@
 #include <map>
 #include <vector>
 
-#include "apps/fnmpc/scenario_runner.hpp"
 #include "conversions.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 #include "fnmpc/sim/world.hpp"
 #include "fnmpc_ros/SimSync.h"
 
@@ -68,7 +68,7 @@ class SimNode {
     manual_ = scenario_.leader_mode == "manual";
     trajectory_ = onboard::LeaderTrajectory(scenario_, static_cast<std::uint64_t>(seed));
     world_ = std::make_unique<sim::World>(
-        app::WorldConfigFor(scenario_, static_cast<std::uint64_t>(seed)));
+        experiment::WorldConfigFor(scenario_, static_cast<std::uint64_t>(seed)));
 
     clock_pub_ = nh_.advertise<rosgraph_msgs::Clock>("/clock", 10);
     const int q = 1000;

@@ -27,9 +27,9 @@
 #include <memory>
 #include <vector>
 
-#include "apps/fnmpc/scenario_runner.hpp"
 #include "conversions.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 #include "fnmpc/onboard/onboard_link.hpp"
 #include "fnmpc_ros/SimSync.h"
 

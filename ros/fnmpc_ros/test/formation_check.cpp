@@ -26,9 +26,9 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 
-#include "apps/fnmpc/scenario_runner.hpp"
 #include "conversions.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/experiment/scenario_runner.hpp"
 #include "fnmpc_ros/Plan.h"
 #include "fnmpc_ros/SimSync.h"
 
