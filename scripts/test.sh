@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: BSD-3-Clause
-# The whole test suite on a fresh machine: installs the Debian packages (ROS 1 included),
+# The whole test suite on a fresh machine: installs the Debian packages (ROS 1 and the DDS
+# packages of the ROS 2 interface included),
 # builds with AddressSanitizer + UndefinedBehaviorSanitizer, the ROS package in the same
 # tree, and runs every test with ctest (the rostests and install_and_examples, which
 # installs that build and runs examples/ against it, included), runs the solver's unit
@@ -28,7 +29,7 @@ step_done() {
   echo "test.sh: $1 took $((SECONDS - step_start)) s (suite so far $(((SECONDS - suite_start) / 60)) min)"
   step_start=$SECONDS
 }
-deps=(--with-ros)
+deps=(--with-ros --with-ros2)
 if [[ $aarch64 == ON ]]; then deps+=(--with-aarch64); fi
 bash scripts/install-deps.sh "${deps[@]}"
 step_done "install-deps"
