@@ -77,7 +77,12 @@ def row(folder):
             return "n/a"
         return f"{sum(v) / len(v):.3f} ({min(v):.3f}–{max(v):.3f})"
 
-    return (f"| {os.path.basename(folder.rstrip('/'))} | {top.get('compensation', '?')} | "
+    # A campaign's run folder is OUT/merged (fnmpc campaign): named after its campaign folder.
+    path = folder.rstrip('/')
+    label = os.path.basename(path)
+    if label == "merged":
+        label = os.path.basename(os.path.dirname(os.path.abspath(path)))
+    return (f"| {label} | {top.get('compensation', '?')} | "
             f"{len(steady)} | {cell(steady)} | {cell(mean)} | {cell(mx)} | {cell(vert)} |")
 
 
