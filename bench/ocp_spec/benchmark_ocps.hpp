@@ -9,7 +9,7 @@
 #include "fnmpc/ocp/problems.hpp"
 #include "fnmpc/rti/rti_solver.hpp"
 
-/// The fixed benchmark OCPs and closed-loop scenarios of shared/benchmark/ocp-spec.md,
+/// The fixed benchmark OCPs and closed-loop scenarios of docs/benchmark-spec.md,
 /// implemented exactly: problems L, F2, F6 (and the reduced F2, F6 formulations of the
 /// same problems), the quintic waypoint references ("nominal", "aggressive").
 namespace fnmpc::rti::benchmark {

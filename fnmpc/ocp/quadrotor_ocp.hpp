@@ -11,7 +11,7 @@
 /// bounded states, input and speed bounds, the reduced follower's displacement bounds. One
 /// module for both users, the formation controllers (fnmpc/formation/nmpc_core.cpp,
 /// whose problems add obstacle and input-rate rows after these) and the fixed benchmark
-/// problems (benchmark_ocps.cpp, shared/benchmark/ocp-spec.md: the defaults of
+/// problems (benchmark_ocps.cpp, docs/benchmark-spec.md: the defaults of
 /// ocp::NmpcWeights and of formation::ControllerSettings' bounds). Templates on the solver:
 /// no quadrotor type enters the solver.
 namespace fnmpc::rti::quadrotor {
