@@ -5,8 +5,8 @@
 #   <prefix>/lib/libfnmpc_<layer>.a
 #   <prefix>/lib/cmake/fnmpc/{fnmpcConfig,fnmpcConfigVersion,fnmpcTargets}.cmake
 # so that `find_package(fnmpc CONFIG REQUIRED)` gives the targets fnmpc::<layer>. The
-# configuration, simulator and sysid layers (yaml-cpp, MuJoCo, Ceres) and the CLI are not
-# part of the package.
+# configuration, simulator and sysid layers (yaml-cpp, MuJoCo, Ceres), the benchmark problems
+# of `fnmpc bench` (bench/ocp_spec) and the CLI are not part of the package.
 include(CMakePackageConfigHelpers)
 include(GNUInstallDirs)
 
@@ -22,10 +22,6 @@ foreach(layer IN LISTS FNMPC_INSTALLED_LAYERS)
           DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/fnmpc/${layer}
           FILES_MATCHING PATTERN "*.hpp")
 endforeach()
-# The benchmark problems (fnmpc/rti/benchmark_ocps.hpp, installed with the rti headers).
-if(TARGET fnmpc_rti_benchmark)
-  list(APPEND fnmpc_install_targets fnmpc_rti_benchmark)
-endif()
 install(TARGETS ${fnmpc_install_targets} EXPORT fnmpcTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include "fnmpc/model/rk4.hpp"
+#include "fnmpc/core/rk4.hpp"
 #include "fnmpc/rti/rti_solver.hpp"
 
 using namespace fnmpc;
@@ -20,7 +20,7 @@ struct Cart {  // the solver's problem contract: docs/rti.md
       if (fx != nullptr) *fx << 0, 1, 0, -friction / mass;
       if (fu != nullptr) *fu << 0, 1 / mass;
     };
-    return model::IntegrateRk4(flow, x, u, dt, steps, A, B);
+    return IntegrateRk4(flow, x, u, dt, steps, A, B);
   }
   // y = [position, velocity, force], yN = [position, velocity].
   void StageResidual(const Vec<2>& x, const Vec<1>& u, const Params&, Vec<3>* y, Mat<3, 2>* yx,

@@ -8,7 +8,7 @@ Runs the aarch64 `fnmpc bench --problem P --scenario S` under qemu-aarch64 with 
 line per executed block, naming its translation) and `nochain` (no block chaining, so that
 every executed block is logged). The instructions of a control step are the sizes of the
 blocks executed between the calls of fnmpc_bench_step_begin and fnmpc_bench_step_end
-(fnmpc/rti/benchmark_ocps.hpp), libm and libc included. --singlestep translates one
+(bench/ocp_spec/benchmark_ocps.hpp), libm and libc included. --singlestep translates one
 instruction per block instead (slower; every executed block is one instruction), the
 check of the block-size count.
 
@@ -40,7 +40,7 @@ END = b"fnmpc_bench_step_end\n"
 
 
 def percentile(values, q):
-    """The same nearest-rank percentile as fnmpc::rti::benchmark::Summarize."""
+    """The same nearest-rank percentile as fnmpc::bench::Summarize."""
     v = sorted(values)
     idx = int(math.ceil(q * len(v)) - 1)
     return v[max(0, min(idx, len(v) - 1))]

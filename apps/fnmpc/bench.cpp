@@ -8,13 +8,13 @@
 #include <vector>
 
 #include "apps/fnmpc/commands.hpp"
-#include "fnmpc/rti/benchmark_ocps.hpp"
+#include "bench/ocp_spec/benchmark_ocps.hpp"
 
 namespace fnmpc::app {
 namespace {
 
-using rti::benchmark::ProblemId;
-using rti::benchmark::Scenario;
+using bench::ProblemId;
+using bench::Scenario;
 
 struct BenchOptions {
   bool json = false;
@@ -23,8 +23,7 @@ struct BenchOptions {
   int steps = -1;
 };
 
-nlohmann::json ToJson(const rti::benchmark::ClosedLoopResult& r,
-                      const rti::benchmark::ClosedLoopSummary& s) {
+nlohmann::json ToJson(const bench::ClosedLoopResult& r, const bench::ClosedLoopSummary& s) {
   return {{"problem", std::string(ToString(r.problem))},
           {"scenario", std::string(ToString(r.scenario))},
           {"steps", r.steps.size()},
@@ -47,7 +46,7 @@ nlohmann::json ToJson(const rti::benchmark::ClosedLoopResult& r,
 
 int Run(const BenchOptions& o) {
   std::vector<ProblemId> problems;
-  for (ProblemId p : rti::benchmark::kAllProblems) {
+  for (ProblemId p : bench::kAllProblems) {
     if (o.problems.empty() ||
         std::find(o.problems.begin(), o.problems.end(), ToString(p)) != o.problems.end()) {
       problems.push_back(p);
@@ -63,21 +62,22 @@ int Run(const BenchOptions& o) {
   nlohmann::json out = nlohmann::json::array();
   if (!o.json) {
     fmt::print("{:<11} {:<10} {:>9} {:>9} {:>9} {:>9} {:>6} {:>9} {:>9} {:>9} {:>5} {:>5}\n",
-               "problem", "scenario", "med[us]", "p99[us]", "max[us]", "fb[us]", "qp-it",
-               "kkt-med", "kkt-max", "rms[m]", "fall", "ricc");
+               "problem", "scenario", "med[us]", "p99[us]", "max[us]", "fb[us]", "qp-it", "kkt-med",
+               "kkt-max", "rms[m]", "fall", "ricc");
   }
   for (Scenario sc : scenarios) {
     for (ProblemId p : problems) {
-      const auto r = rti::benchmark::RunClosedLoop(p, sc, o.steps);
-      const auto s = rti::benchmark::Summarize(r);
+      const auto r = bench::RunClosedLoop(p, sc, o.steps);
+      const auto s = bench::Summarize(r);
       if (o.json) {
         out.push_back(ToJson(r, s));
       } else {
-        fmt::print("{:<11} {:<10} {:>9.1f} {:>9.1f} {:>9.1f} {:>9.2f} {:>6.0f} {:>9.1e} {:>9.1e} "
-                   "{:>9.5f} {:>5} {:>5}\n",
-                   ToString(p), ToString(sc), s.step_median_us, s.step_p99_us, s.step_max_us,
-                   s.feedback_median_us, s.qp_iterations_median, s.kkt_median, s.kkt_max,
-                   s.rms_error_m, s.fallbacks, s.unconstrained_steps);
+        fmt::print(
+            "{:<11} {:<10} {:>9.1f} {:>9.1f} {:>9.1f} {:>9.2f} {:>6.0f} {:>9.1e} {:>9.1e} "
+            "{:>9.5f} {:>5} {:>5}\n",
+            ToString(p), ToString(sc), s.step_median_us, s.step_p99_us, s.step_max_us,
+            s.feedback_median_us, s.qp_iterations_median, s.kkt_median, s.kkt_max, s.rms_error_m,
+            s.fallbacks, s.unconstrained_steps);
         std::fflush(stdout);
       }
     }

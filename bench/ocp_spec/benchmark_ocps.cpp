@@ -1,14 +1,14 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "fnmpc/rti/benchmark_ocps.hpp"
+#include "bench/ocp_spec/benchmark_ocps.hpp"
 
 #include <algorithm>
 #include <cmath>
 
 #include "fnmpc/core/stopwatch.hpp"
 #include "fnmpc/model/rk4.hpp"
-#include "fnmpc/rti/quadrotor_ocp.hpp"
+#include "fnmpc/ocp/quadrotor_ocp.hpp"
 
-namespace fnmpc::rti::benchmark {
+namespace fnmpc::bench {
 
 std::string_view ToString(Scenario s) { return s == Scenario::kNominal ? "nominal" : "aggressive"; }
 
@@ -28,8 +28,8 @@ std::string_view ToString(ProblemId p) {
   return "?";
 }
 
-RtiSettings SpecSettings() {
-  RtiSettings s;
+rti::RtiSettings SpecSettings() {
+  rti::RtiSettings s;
   s.horizon = 15;
   s.sample_time = 0.05;
   s.integrator_steps = 2;
@@ -82,21 +82,21 @@ const Vec3 kInputUpper(25.0, 0.35, 0.35);
 
 template <class Solver>
 void SetInputBounds(Solver* solver) {
-  quadrotor::SetInputLimits(solver, kInputLower[0], kInputUpper[0], kInputUpper[1]);
+  ocp::quadrotor::SetInputLimits(solver, kInputLower[0], kInputUpper[0], kInputUpper[1]);
 }
 
 Vec3 HoverInput() { return {SpecVehicle().mass * kGravity, 0, 0}; }
 
 }  // namespace
 
-LeaderSolver MakeLeaderSolver(const Vec<9>& x0, const RtiSettings& settings) {
+LeaderSolver MakeLeaderSolver(const Vec<9>& x0, const rti::RtiSettings& settings) {
   LeaderSolver solver(ocp::LeaderProblem{SpecVehicle()}, settings,
-                      quadrotor::LeaderLayout(/*altitude=*/false, /*soft=*/false));
-  solver.SetWeights(quadrotor::LeaderWeights(kSpecWeights),
-                    quadrotor::LeaderTerminalWeights(kSpecWeights));
+                      ocp::quadrotor::LeaderLayout(/*altitude=*/false, /*soft=*/false));
+  solver.SetWeights(ocp::quadrotor::LeaderWeights(kSpecWeights),
+                    ocp::quadrotor::LeaderTerminalWeights(kSpecWeights));
   SetInputBounds(&solver);
   Vec<9> lb = Vec<9>::Constant(-kInf), ub = Vec<9>::Constant(kInf);
-  quadrotor::SetSpeedBounds(3, kMaxVel, &lb, &ub);
+  ocp::quadrotor::SetSpeedBounds(3, kMaxVel, &lb, &ub);
   for (int k = 1; k <= solver.horizon(); ++k) solver.SetStateBounds(k, lb, ub);
   solver.InitializeGuess(x0, HoverInput());
   return solver;
@@ -133,8 +133,8 @@ namespace {
 // Weights of the spec: neighbours 1 and 2 weighted, the others (F6's static points) not.
 template <int Nn, class Solver>
 void SetFollowerWeights(Solver* solver) {
-  solver->SetWeights(quadrotor::FollowerWeights<Nn>(kSpecWeights, 2),
-                     quadrotor::FollowerTerminalWeights<Nn>(kSpecWeights, 2));
+  solver->SetWeights(ocp::quadrotor::FollowerWeights<Nn>(kSpecWeights, 2),
+                     ocp::quadrotor::FollowerTerminalWeights<Nn>(kSpecWeights, 2));
 }
 
 template <int Nn, class Solver>
@@ -165,12 +165,12 @@ Vec<6 + 8 * Nn> FollowerState(const Vec<6>& own, const std::array<NeighbourState
 template <int Nn>
 FollowerSolver<Nn> MakeFollowerSolver(const Vec<6>& own,
                                       const std::array<NeighbourState, Nn>& neighbours,
-                                      const RtiSettings& settings, ocp::TargetFrame frame) {
+                                      const rti::RtiSettings& settings, ocp::TargetFrame frame) {
   using Problem = ocp::FollowerProblem<Nn>;
   constexpr int nx = Problem::kNx;
-  StateBoundLayout layout{{0, 1, 2}, {false, false, false}};  // own velocity, hard
+  rti::StateBoundLayout layout{{0, 1, 2}, {false, false, false}};  // own velocity, hard
   Vec<nx> lb = Vec<nx>::Constant(-kInf), ub = Vec<nx>::Constant(kInf);
-  quadrotor::SetSpeedBounds(0, kMaxVel, &lb, &ub);
+  ocp::quadrotor::SetSpeedBounds(0, kMaxVel, &lb, &ub);
   for (int j = 0; j < Nn; ++j) {
     const int o = model::FollowerModel<Nn>::Neighbour(j);
     for (int i = 0; i < 3; ++i) {
@@ -198,14 +198,14 @@ Vec<9> SetReducedFollowerStage(ReducedFollowerSolver<Nn>* solver, const Vec<6>& 
   p[0] = 0.0;  // psi_ref
   for (int j = 0; j < Nn; ++j) p.template segment<3>(Problem::ParamVel(j)) = nb[j].vel;
   Vec<9> lb = Vec<9>::Constant(-kInf), ub = Vec<9>::Constant(kInf);
-  quadrotor::SetSpeedBounds(3, kMaxVel, &lb, &ub);
+  ocp::quadrotor::SetSpeedBounds(3, kMaxVel, &lb, &ub);
   for (int k = 0; k <= solver->horizon(); ++k) {
     const double t = k * ts;
     Vec3 s_lo = Vec3::Constant(-kInf), s_hi = Vec3::Constant(kInf);
     for (int j = 0; j < Nn; ++j) {
       const Vec3 c = nb[j].rel_pos + t * nb[j].vel;  // constant-velocity prediction
       p.template segment<3>(Problem::ParamRelPos(j)) = c;
-      quadrotor::IntersectRelativeBound(c, kRelPosBound, &s_lo, &s_hi);
+      ocp::quadrotor::IntersectRelativeBound(c, kRelPosBound, &s_lo, &s_hi);
     }
     solver->SetParameters(k, p);
     if (k >= 1) {
@@ -223,10 +223,10 @@ Vec<9> SetReducedFollowerStage(ReducedFollowerSolver<Nn>* solver, const Vec<6>& 
 template <int Nn>
 ReducedFollowerSolver<Nn> MakeReducedFollowerSolver(
     const Vec<6>& own, const std::array<NeighbourState, Nn>& neighbours,
-    const RtiSettings& settings, ocp::TargetFrame frame) {
+    const rti::RtiSettings& settings, ocp::TargetFrame frame) {
   using Problem = ocp::ReducedFollowerProblem<Nn>;
   ReducedFollowerSolver<Nn> solver(Problem{SpecVehicle(), frame}, settings,
-                                   quadrotor::ReducedFollowerLayout(/*soft_velocity=*/false));
+                                   ocp::quadrotor::ReducedFollowerLayout(/*soft_velocity=*/false));
   SetFollowerWeights<Nn>(&solver);
   SetInputBounds(&solver);
   FollowerReferences<Nn>(&solver);
@@ -235,15 +235,17 @@ ReducedFollowerSolver<Nn> MakeReducedFollowerSolver(
   return solver;
 }
 
-#define FNMPC_INSTANTIATE(NN)                                                                      \
-  template std::array<Vec3, NN> DesiredOffsets<NN>();                                              \
-  template Vec<6 + 8 * NN> FollowerState<NN>(const Vec<6>&,                                        \
-                                             const std::array<NeighbourState, NN>&);               \
-  template FollowerSolver<NN> MakeFollowerSolver<NN>(                                              \
-      const Vec<6>&, const std::array<NeighbourState, NN>&, const RtiSettings&, ocp::TargetFrame); \
-  template ReducedFollowerSolver<NN> MakeReducedFollowerSolver<NN>(                                \
-      const Vec<6>&, const std::array<NeighbourState, NN>&, const RtiSettings&, ocp::TargetFrame); \
-  template Vec<9> SetReducedFollowerStage<NN>(ReducedFollowerSolver<NN>*, const Vec<6>&,           \
+#define FNMPC_INSTANTIATE(NN)                                                                    \
+  template std::array<Vec3, NN> DesiredOffsets<NN>();                                            \
+  template Vec<6 + 8 * NN> FollowerState<NN>(const Vec<6>&,                                      \
+                                             const std::array<NeighbourState, NN>&);             \
+  template FollowerSolver<NN> MakeFollowerSolver<NN>(const Vec<6>&,                              \
+                                                     const std::array<NeighbourState, NN>&,      \
+                                                     const rti::RtiSettings&, ocp::TargetFrame); \
+  template ReducedFollowerSolver<NN> MakeReducedFollowerSolver<NN>(                              \
+      const Vec<6>&, const std::array<NeighbourState, NN>&, const rti::RtiSettings&,             \
+      ocp::TargetFrame);                                                                         \
+  template Vec<9> SetReducedFollowerStage<NN>(ReducedFollowerSolver<NN>*, const Vec<6>&,         \
                                               const std::array<NeighbourState, NN>&);
 FNMPC_INSTANTIATE(2)
 FNMPC_INSTANTIATE(6)
@@ -251,13 +253,13 @@ FNMPC_INSTANTIATE(6)
 
 // ---- Closed loop ----
 
-}  // namespace fnmpc::rti::benchmark
+}  // namespace fnmpc::bench
 
 // The empty asm keeps each call: the compiler may not drop a call of an empty function.
 extern "C" [[gnu::noinline]] void fnmpc_bench_step_begin(int step) { asm volatile("" ::"r"(step)); }
 extern "C" [[gnu::noinline]] void fnmpc_bench_step_end(int step) { asm volatile("" ::"r"(step)); }
 
-namespace fnmpc::rti::benchmark {
+namespace fnmpc::bench {
 
 namespace {
 
@@ -305,7 +307,7 @@ void Record(Solver* solver, const Vec<Solver::kNx>& x0, const Vec3& u, const Sto
   result->fallbacks = solver->stats().fallback_count;
 }
 
-ClosedLoopResult RunLeader(Scenario scenario, int steps, const RtiSettings& settings) {
+ClosedLoopResult RunLeader(Scenario scenario, int steps, const rti::RtiSettings& settings) {
   ClosedLoopResult result;
   const ReferenceTrajectory ref(scenario);
   Vec<9> x = Vec<9>::Zero();
@@ -348,7 +350,7 @@ std::array<NeighbourState, Nn> SenseNeighbours(const ReferenceTrajectory& ref, d
 }
 
 template <int Nn, bool kReduced>
-ClosedLoopResult RunFollower(Scenario scenario, int steps, const RtiSettings& settings) {
+ClosedLoopResult RunFollower(Scenario scenario, int steps, const rti::RtiSettings& settings) {
   ClosedLoopResult result;
   const ReferenceTrajectory ref(scenario);
   Vec<9> plant = Vec<9>::Zero();  // follower: p, v, angles
@@ -411,7 +413,7 @@ double Percentile(std::vector<double> v, double q) {
 }  // namespace
 
 ClosedLoopResult RunClosedLoop(ProblemId problem, Scenario scenario, int steps,
-                               const RtiSettings& settings) {
+                               const rti::RtiSettings& settings) {
   if (steps < 0) steps = ReferenceTrajectory(scenario).num_steps();
   ClosedLoopResult r;
   switch (problem) {
@@ -468,4 +470,4 @@ ClosedLoopSummary Summarize(const ClosedLoopResult& result) {
   return s;
 }
 
-}  // namespace fnmpc::rti::benchmark
+}  // namespace fnmpc::bench

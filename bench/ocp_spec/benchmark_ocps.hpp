@@ -12,22 +12,21 @@
 /// The fixed benchmark OCPs and closed-loop scenarios of docs/benchmark-spec.md,
 /// implemented exactly: problems L, F2, F6 (and the reduced F2, F6 formulations of the
 /// same problems), the quintic waypoint references ("nominal", "aggressive").
-namespace fnmpc::rti::benchmark {
+namespace fnmpc::bench {
 
 enum class Scenario { kNominal, kAggressive };
 enum class ProblemId { kL, kF2, kF6, kF2Reduced, kF6Reduced };
 std::string_view ToString(Scenario s);
 std::string_view ToString(ProblemId p);
-inline constexpr std::array<ProblemId, 5> kAllProblems{ProblemId::kL, ProblemId::kF2,
-                                                       ProblemId::kF6, ProblemId::kF2Reduced,
-                                                       ProblemId::kF6Reduced};
+inline constexpr std::array<ProblemId, 5> kAllProblems{
+    ProblemId::kL, ProblemId::kF2, ProblemId::kF6, ProblemId::kF2Reduced, ProblemId::kF6Reduced};
 
 /// Vehicle of the spec (Table 1 of the reference work).
 inline model::AttitudeModelParams SpecVehicle() { return {}; }
 
 /// Solver settings of the spec: Ts = 0.05 s, N = 15, 2 RK4 steps, one SQP iteration per
 /// step after an initial convergence to KKT < 1e-6.
-RtiSettings SpecSettings();
+rti::RtiSettings SpecSettings();
 
 /// Leader reference: quintic rest-to-rest legs through the six waypoints (nominal: five
 /// 4 s legs; aggressive: the tour four times with 1.2 s legs), then hold until 26 s.
@@ -63,30 +62,30 @@ struct NeighbourState {
 };
 
 // ---- Problem L ----
-using LeaderSolver = RtiSolver<ocp::LeaderProblem>;
+using LeaderSolver = rti::RtiSolver<ocp::LeaderProblem>;
 /// Builds the spec's L solver (weights, bounds) and its initial guess at rest at x0.
-LeaderSolver MakeLeaderSolver(const Vec<9>& x0, const RtiSettings& settings = SpecSettings());
+LeaderSolver MakeLeaderSolver(const Vec<9>& x0, const rti::RtiSettings& settings = SpecSettings());
 /// Sets the references of every stage for the control step starting at time t.
 void SetLeaderReferences(LeaderSolver* solver, const ReferenceTrajectory& ref, double t);
 
 // ---- Problems F2, F6 (full) and their reduced formulations ----
 /// Number of neighbours of the benchmark follower problems: 2 or 6.
 template <int Nn>
-using FollowerSolver = RtiSolver<ocp::FollowerProblem<Nn>>;
+using FollowerSolver = rti::RtiSolver<ocp::FollowerProblem<Nn>>;
 template <int Nn>
-using ReducedFollowerSolver = RtiSolver<ocp::ReducedFollowerProblem<Nn>>;
+using ReducedFollowerSolver = rti::RtiSolver<ocp::ReducedFollowerProblem<Nn>>;
 
 /// The spec's follower weights, bounds and references; initial guess from the follower's
 /// own (v, phi, theta, psi) and the neighbour states.
 template <int Nn>
 FollowerSolver<Nn> MakeFollowerSolver(const Vec<6>& own,
                                       const std::array<NeighbourState, Nn>& neighbours,
-                                      const RtiSettings& settings = SpecSettings(),
+                                      const rti::RtiSettings& settings = SpecSettings(),
                                       ocp::TargetFrame frame = ocp::TargetFrame::kInertial);
 template <int Nn>
 ReducedFollowerSolver<Nn> MakeReducedFollowerSolver(
     const Vec<6>& own, const std::array<NeighbourState, Nn>& neighbours,
-    const RtiSettings& settings = SpecSettings(),
+    const rti::RtiSettings& settings = SpecSettings(),
     ocp::TargetFrame frame = ocp::TargetFrame::kInertial);
 
 /// Full follower state from own (v, angles) and neighbour states.
@@ -106,15 +105,16 @@ inline const Vec3 kRelPosBound{6.0, 6.0, 2.0};  ///< |dx_j| component bounds [m]
 // ---- Closed loop ----
 /// One control step of a closed-loop run.
 struct StepRecord {
-  double step_us = 0;        ///< shift + references + prepare + feedback [us]
-  double feedback_us = 0;    ///< x0 to u0 [us]
+  double step_us = 0;      ///< shift + references + prepare + feedback [us]
+  double feedback_us = 0;  ///< x0 to u0 [us]
   int qp_iterations = 0;
   bool unconstrained_step = false;  ///< the unconstrained Riccati step solved the QP
-  double kkt = 0;            ///< KKT value after the step (computed outside the timing)
-  double error_m = 0;        ///< L: |p - p_r|; F: mean_j |dx_j - d_j| at the end of the step
+  double kkt = 0;                   ///< KKT value after the step (computed outside the timing)
+  double error_m = 0;               ///< L: |p - p_r|; F: mean_j |dx_j - d_j| at the end of the step
   bool fallback = false;
-  double input_violation = 0;       ///< largest violation of the input bounds by the applied u
-  double hard_state_violation = 0;  ///< largest violation of the hard state bounds by the QP solution
+  double input_violation = 0;  ///< largest violation of the input bounds by the applied u
+  double hard_state_violation =
+      0;  ///< largest violation of the hard state bounds by the QP solution
 };
 
 struct ClosedLoopResult {
@@ -122,8 +122,8 @@ struct ClosedLoopResult {
   Scenario scenario = Scenario::kNominal;
   std::vector<StepRecord> steps;
   long fallbacks = 0;
-  double initial_kkt = 0;         ///< KKT after the initial convergence at t = 0
-  int initial_iterations = 0;     ///< SQP iterations of the initial convergence
+  double initial_kkt = 0;      ///< KKT after the initial convergence at t = 0
+  int initial_iterations = 0;  ///< SQP iterations of the initial convergence
 };
 
 /// Runs the closed-loop scenario of the spec for one problem (plant: the same model,
@@ -131,9 +131,9 @@ struct ClosedLoopResult {
 /// control step (the span of StepRecord::step_us) starts with a call of
 /// fnmpc_bench_step_begin and ends with one of fnmpc_bench_step_end.
 ClosedLoopResult RunClosedLoop(ProblemId problem, Scenario scenario, int steps = -1,
-                               const RtiSettings& settings = SpecSettings());
+                               const rti::RtiSettings& settings = SpecSettings());
 
-}  // namespace fnmpc::rti::benchmark
+}  // namespace fnmpc::bench
 
 /// Step markers of RunClosedLoop: empty and never inlined, so that an instruction counter
 /// under emulation finds the control steps by these functions' addresses
@@ -141,7 +141,7 @@ ClosedLoopResult RunClosedLoop(ProblemId problem, Scenario scenario, int steps =
 extern "C" void fnmpc_bench_step_begin(int step);
 extern "C" void fnmpc_bench_step_end(int step);
 
-namespace fnmpc::rti::benchmark {
+namespace fnmpc::bench {
 
 /// Summary figures of a run (medians and maxima over the steps).
 struct ClosedLoopSummary {
@@ -154,10 +154,10 @@ struct ClosedLoopSummary {
 };
 ClosedLoopSummary Summarize(const ClosedLoopResult& result);
 
-}  // namespace fnmpc::rti::benchmark
+}  // namespace fnmpc::bench
 
 // The solvers of the benchmark problems are instantiated once, each in its own
-// translation unit (rti_instances_*.cpp), to keep compile times down.
+// translation unit (solver_instances_*.cpp), to keep compile times down.
 namespace fnmpc::rti {
 extern template class RtiSolver<ocp::LeaderProblem>;
 extern template class RtiSolver<ocp::FollowerProblem<2>>;

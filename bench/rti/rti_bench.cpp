@@ -3,9 +3,9 @@
 // of each benchmark problem, mid-way through the nominal scenario.
 #include <benchmark/benchmark.h>
 
-#include "fnmpc/rti/benchmark_ocps.hpp"
+#include "bench/ocp_spec/benchmark_ocps.hpp"
 
-namespace fnmpc::rti::benchmark {
+namespace fnmpc::bench {
 namespace {
 
 void BM_LeaderStep(::benchmark::State& state) {
@@ -79,4 +79,4 @@ BENCHMARK(BM_FollowerStep<2, true>)->Name("BM_F2ReducedStep");
 BENCHMARK(BM_FollowerStep<6, true>)->Name("BM_F6ReducedStep");
 
 }  // namespace
-}  // namespace fnmpc::rti::benchmark
+}  // namespace fnmpc::bench

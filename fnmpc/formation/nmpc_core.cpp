@@ -9,8 +9,8 @@
 #include "fnmpc/formation/neighbour_acceleration.hpp"
 #include "fnmpc/formation/throttle_map.hpp"
 #include "fnmpc/ocp/problem_extensions.hpp"
+#include "fnmpc/ocp/quadrotor_ocp.hpp"
 #include "fnmpc/ocp/wake_extension.hpp"
-#include "fnmpc/rti/quadrotor_ocp.hpp"
 
 namespace fnmpc::formation {
 
@@ -130,7 +130,7 @@ struct HoverTarget {
 // [-max + o, max + o] so that the reference sent stays within +-max_attitude_ref unclamped.
 template <class Solver>
 void InputBounds(const ControllerConfig& c, Solver* s, const Vec<2>& o = Vec<2>::Zero()) {
-  rti::quadrotor::SetInputLimits(s, c.thrust_min, c.thrust_max, c.max_attitude_ref, o);
+  ocp::quadrotor::SetInputLimits(s, c.thrust_min, c.thrust_max, c.max_attitude_ref, o);
 }
 
 // Bounds of the leader's position z and velocity, of the follower's displacement and
@@ -146,20 +146,20 @@ class LeaderCore final : public NmpcCore {
         solver_(Problem(ocp::WithInputRate<Base>(
                     Base(ocp::LeaderProblem{model::AttitudeModelParams::From(c.params)},
                          c.safety.collision_radius))),
-                c.rti, rti::quadrotor::LeaderLayout(/*altitude=*/true, /*soft=*/true)) {
+                c.rti, ocp::quadrotor::LeaderLayout(/*altitude=*/true, /*soft=*/true)) {
     const NmpcWeights& wt = c.weights;
     w_.setZero();
-    w_.head<11>() = rti::quadrotor::LeaderWeights(wt);
+    w_.head<11>() = ocp::quadrotor::LeaderWeights(wt);
     w_.segment<kObstacleSlots>(11).setConstant(wt.collision);
     w_.tail<3>() << wt.thrust_rate, wt.attitude_ref_rate, wt.attitude_ref_rate;
-    wn_.head<8>() = rti::quadrotor::LeaderTerminalWeights(wt);
+    wn_.head<8>() = ocp::quadrotor::LeaderTerminalWeights(wt);
     wn_.tail<kObstacleSlots>().setConstant(wt.collision);
     solver_.SetWeights(w_, wn_);
     InputBounds(c, &solver_);
     Solver::X lb = Solver::X::Constant(-kInf), ub = Solver::X::Constant(kInf);
     lb[2] = c.safety.min_altitude;  // z of the CoM, the ground plane at z = 0
     ub[2] = c.safety.max_altitude;
-    rti::quadrotor::SetSpeedBounds(3, c.max_speed, &lb, &ub);
+    ocp::quadrotor::SetSpeedBounds(3, c.max_speed, &lb, &ub);
     for (int k = 1; k <= solver_.horizon(); ++k) solver_.SetStateBounds(k, lb, ub);
     yref_.assign(solver_.horizon(), Solver::Y::Zero());
     params_.assign(solver_.horizon() + 1, Solver::P::Zero());
@@ -287,10 +287,10 @@ class FollowerCore final : public NmpcCore {
                                  Base(Reduced{model::AttitudeModelParams::From(c.params), c.frame},
                                       c.safety.collision_radius)),
                              model::WakeForceModel(c.params))),
-                c.rti, rti::quadrotor::ReducedFollowerLayout(/*soft_velocity=*/true)) {
+                c.rti, ocp::quadrotor::ReducedFollowerLayout(/*soft_velocity=*/true)) {
     const NmpcWeights& wt = c.weights;
     w_.setZero();
-    w_.head<kNyR>() = rti::quadrotor::FollowerWeights<1>(wt);
+    w_.head<kNyR>() = ocp::quadrotor::FollowerWeights<1>(wt);
     w_.segment<kObstacleSlots>(kNyR).setConstant(wt.collision);
     w_.tail<3>() << wt.thrust_rate, wt.attitude_ref_rate, wt.attitude_ref_rate;
     TerminalWeights(w_, &wn_);
@@ -475,7 +475,7 @@ class FollowerCore final : public NmpcCore {
   X Stage(const NmpcInput& in) {
     const double ts = c_.rti.sample_time;
     X lb = X::Constant(-kInf), ub = X::Constant(kInf);
-    rti::quadrotor::SetSpeedBounds(3, c_.max_speed, &lb, &ub);
+    ocp::quadrotor::SetSpeedBounds(3, c_.max_speed, &lb, &ub);
     const Vec3& b = c_.relative_position_bound;
     const bool height_known = std::isfinite(in.height);
     floor_ = height_known ? c_.ground_height - in.height : -kInf;
@@ -517,7 +517,7 @@ class FollowerCore final : public NmpcCore {
         Predict(j, k, &rel, &vel);
         rel_mean += tie_[j] * rel;
         vel_mean += tie_[j] * vel;
-        rti::quadrotor::IntersectRelativeBound(rel, b + disagreement_[j], &lo, &hi);
+        ocp::quadrotor::IntersectRelativeBound(rel, b + disagreement_[j], &lo, &hi);
       }
       if (active_count_ > 0) {
         rel_mean /= active_count_;

@@ -9,7 +9,7 @@ namespace fnmpc::ocp {
 /// Diagonal NMPC weights of the quadrotor problems: the benchmark spec's values by default (the
 /// benchmark flies these defaults), the controllers' by role (the scenario's
 /// `controller.weights.leader` / `.follower` map onto this struct through Serialize, which
-/// documents each field). fnmpc/rti/quadrotor_ocp.hpp maps them onto the problems' residual
+/// documents each field). fnmpc/ocp/quadrotor_ocp.hpp maps them onto the problems' residual
 /// rows. Leader rows: position, velocity; follower rows: relative position and relative
 /// velocity per neighbour.
 struct NmpcWeights {

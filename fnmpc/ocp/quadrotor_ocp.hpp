@@ -7,14 +7,14 @@
 #include "fnmpc/ocp/nmpc_weights.hpp"
 #include "fnmpc/rti/rti_settings.hpp"
 
-/// How the quadrotor OCPs of fnmpc/ocp/problems.hpp are set up on an RtiSolver: weight rows,
-/// bounded states, input and speed bounds, the reduced follower's displacement bounds. One
-/// module for both users, the formation controllers (fnmpc/formation/nmpc_core.cpp,
+/// How the quadrotor OCPs of fnmpc/ocp/problems.hpp are set up on an rti::RtiSolver: weight
+/// rows, bounded states, input and speed bounds, the reduced follower's displacement bounds.
+/// One module for both users, the formation controllers (fnmpc/formation/nmpc_core.cpp,
 /// whose problems add obstacle and input-rate rows after these) and the fixed benchmark
-/// problems (benchmark_ocps.cpp, docs/benchmark-spec.md: the defaults of
-/// ocp::NmpcWeights and of formation::ControllerSettings' bounds). Templates on the solver:
-/// no quadrotor type enters the solver.
-namespace fnmpc::rti::quadrotor {
+/// problems (bench/ocp_spec/benchmark_ocps.cpp, docs/benchmark-spec.md: the defaults of
+/// ocp::NmpcWeights and of formation::ControllerSettings' bounds). Here, in the quadrotor's
+/// layer, and templated on the solver: the solver layer (fnmpc/rti) knows no quadrotor.
+namespace fnmpc::ocp::quadrotor {
 
 /// Input bounds [T, roll_ref, pitch_ref] on every stage: thrust in [min, max] [N], the
 /// attitude references within +-max_attitude_ref [rad], moved by `shift` [rad] (roll, pitch;
@@ -68,8 +68,8 @@ Vec<6 * Nn + 2> FollowerTerminalWeights(const ocp::NmpcWeights& w, int weighted 
 
 /// LeaderProblem's bounded states (p, v, angles): the velocity, and the altitude z with
 /// `altitude`; all soft (exact-penalty slacks: no state makes the QP infeasible) or all hard.
-inline StateBoundLayout LeaderLayout(bool altitude, bool soft) {
-  StateBoundLayout layout;
+inline rti::StateBoundLayout LeaderLayout(bool altitude, bool soft) {
+  rti::StateBoundLayout layout;
   for (int i = altitude ? 2 : 3; i < 6; ++i) {
     layout.indices.push_back(i);
     layout.soft.push_back(soft);
@@ -79,7 +79,7 @@ inline StateBoundLayout LeaderLayout(bool altitude, bool soft) {
 
 /// ReducedFollowerProblem's bounded states: the displacement s (soft: it carries the
 /// neighbours' relative-position bounds) and the velocity (soft with `soft_velocity`).
-inline StateBoundLayout ReducedFollowerLayout(bool soft_velocity) {
+inline rti::StateBoundLayout ReducedFollowerLayout(bool soft_velocity) {
   return {{0, 1, 2, 3, 4, 5}, {true, true, true, soft_velocity, soft_velocity, soft_velocity}};
 }
 
@@ -91,4 +91,4 @@ inline void IntersectRelativeBound(const Vec3& c, const Vec3& b, Vec3* lo, Vec3*
   *hi = hi->cwiseMin(c + b);
 }
 
-}  // namespace fnmpc::rti::quadrotor
+}  // namespace fnmpc::ocp::quadrotor

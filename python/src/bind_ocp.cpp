@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// The shipped optimal control problems (fnmpc/rti/benchmark_ocps.hpp, problems of
+// The shipped optimal control problems (bench/ocp_spec/benchmark_ocps.hpp, problems of
 // docs/benchmark-spec.md and of the formation controller): leader L, follower F2 and
 // the reduced follower F2, each as an RTI solver with numpy vectors in and out.
 #include <pybind11/eigen.h>
@@ -8,7 +8,7 @@
 #include <array>
 #include <string>
 
-#include "fnmpc/rti/benchmark_ocps.hpp"
+#include "bench/ocp_spec/benchmark_ocps.hpp"
 #include "python/src/bindings.hpp"
 
 namespace py = pybind11;
@@ -16,7 +16,7 @@ namespace py = pybind11;
 namespace fnmpc::python {
 namespace {
 
-namespace bm = rti::benchmark;
+namespace bm = fnmpc::bench;
 constexpr int kNeighbours = 2;  // the formation controller's followers see two neighbours
 using Neighbours = std::array<bm::NeighbourState, kNeighbours>;
 

@@ -7,6 +7,7 @@
 
 #include <random>
 
+#include "fnmpc/core/rk4.hpp"
 #include "fnmpc/ocp/problems.hpp"
 #include "tests/support/numeric_jacobian.hpp"
 
@@ -146,7 +147,7 @@ Vec<Accel::kNx> GenericRk4WithAcceleration(const Accel& prob, const Vec<Accel::k
     f->template segment<3>(model::QuadrotorModel::kVel) +=
         p.template segment<3>(Accel::kParamAcceleration);
   };
-  return model::IntegrateRk4<M::kNx, 3>(flow, x, u, dt, steps);
+  return IntegrateRk4<M::kNx, 3>(flow, x, u, dt, steps);
 }
 
 TEST(ProblemExtensionsTest, AccelerationParameterAddsItsExactDoubleIntegral) {

@@ -2,7 +2,7 @@
 #pragma once
 // The figures that the cross-architecture test compares between the build machine (x86-64)
 // and the onboard computer (aarch64): the closed loops of the benchmark problems L, F2, F6,
-// F2-reduced and F6-reduced in both scenarios (fnmpc::rti::benchmark::RunClosedLoop, 520
+// F2-reduced and F6-reduced in both scenarios (fnmpc::bench::RunClosedLoop, 520
 // control steps each), sampled every kEvery-th step and at the last one. cross_arch_reference
 // writes them as CSV (tests/onboard/cross_arch_reference.csv, made by an x86-64 Release build);
 // cross_arch_test recomputes them and compares (docs/onboard.md, "Results against x86-64").
@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "fnmpc/rti/benchmark_ocps.hpp"
+#include "bench/ocp_spec/benchmark_ocps.hpp"
 
 namespace fnmpc::onboard_testing {
 
@@ -27,7 +27,7 @@ struct CrossArchRow {
 };
 
 inline std::vector<CrossArchRow> ComputeCrossArchRows() {
-  namespace bm = rti::benchmark;
+  namespace bm = fnmpc::bench;
   std::vector<CrossArchRow> rows;
   for (bm::ProblemId p : bm::kAllProblems) {
     for (bm::Scenario s : {bm::Scenario::kNominal, bm::Scenario::kAggressive}) {

@@ -91,10 +91,10 @@ TEST(CrossArchTest, TheComparisonSeesADifferentLoop) {
   const std::vector<CrossArchRow> ref =
       ReadReference(std::string(FNMPC_SOURCE_DIR) + "/tests/onboard/cross_arch_reference.csv");
   ASSERT_FALSE(ref.empty());
-  rti::RtiSettings other = rti::benchmark::SpecSettings();
+  rti::RtiSettings other = bench::SpecSettings();
   other.horizon = 10;
-  const rti::benchmark::ClosedLoopResult r = rti::benchmark::RunClosedLoop(
-      rti::benchmark::ProblemId::kL, rti::benchmark::Scenario::kNominal, -1, other);
+  const bench::ClosedLoopResult r =
+      bench::RunClosedLoop(bench::ProblemId::kL, bench::Scenario::kNominal, -1, other);
   double worst = 0;
   for (const CrossArchRow& row : ref) {
     if (row.problem != "L" || row.scenario != "nominal") continue;

@@ -1,14 +1,14 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // The solver's problem contract (docs/rti.md) with models that are not quadrotors: one
 // input, one state, a user-defined (or empty) per-stage parameter type, the generic
-// integrator model::IntegrateRk4.
+// integrator IntegrateRk4 (its own test: tests/core/rk4_test.cpp).
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
-#include "fnmpc/model/rk4.hpp"
+#include "fnmpc/core/rk4.hpp"
 #include "fnmpc/rti/rti_solver.hpp"
 #include "tests/support/numeric_jacobian.hpp"
 
@@ -30,7 +30,7 @@ struct PointMass {
       if (fx != nullptr) (*fx)(0, 1) = 1.0;
       if (fu != nullptr) (*fu)(1, 0) = 1.0;
     };
-    return model::IntegrateRk4(flow, x, u, dt, steps, A, B);
+    return IntegrateRk4(flow, x, u, dt, steps, A, B);
   }
   void StageResidual(const Vec<2>& x, const Vec<1>& u, const Params& p, Vec<3>* y, Mat<3, 2>* yx,
                      Mat<3, 1>* yu) const {
@@ -58,7 +58,7 @@ struct Scalar {
       if (fx != nullptr) (*fx)(0, 0) = -3.0 * s[0] * s[0];
       if (fu != nullptr) (*fu)(0, 0) = 1.0;
     };
-    return model::IntegrateRk4(flow, x, u, dt, steps, A, B);
+    return IntegrateRk4(flow, x, u, dt, steps, A, B);
   }
   void StageResidual(const Vec<1>& x, const Vec<1>& u, const Params& /*p*/, Vec<2>* y,
                      Mat<2, 1>* yx, Mat<2, 1>* yu) const {
@@ -107,29 +107,6 @@ RtiSettings Settings(int horizon, double ts) {
   s.horizon = horizon;
   s.sample_time = ts;
   return s;
-}
-
-TEST(ProblemContractTest, IntegrateRk4SensitivitiesMatchFiniteDifferences) {
-  // Given a pendulum, x = [angle, rate], u = [torque]
-  auto flow = [](const Vec<2>& s, const Vec<1>& u, Vec<2>* f, Mat<2, 2>* fx, Mat<2, 1>* fu) {
-    *f << s[1], -9.81 * std::sin(s[0]) - 0.3 * s[1] + u[0];
-    if (fx != nullptr) *fx << 0.0, 1.0, -9.81 * std::cos(s[0]), -0.3;
-    if (fu != nullptr) *fu << 0.0, 1.0;
-  };
-  const Vec<2> x0(0.7, -0.4);
-  const Vec<1> u(0.5);
-  // When the interval map is differentiated by IntegrateRk4 and by central differences
-  Mat<2, 2> A;
-  Mat<2, 1> B;
-  const Vec<2> x1 = model::IntegrateRk4(flow, x0, u, 0.1, 3, &A, &B);
-  const auto ax = testing::NumericJacobian<2>(
-      x0, [&](const Vec<2>& x) { return model::IntegrateRk4(flow, x, u, 0.1, 3); });
-  const auto bu = testing::NumericJacobian<1>(
-      u, [&](const Vec<1>& v) { return model::IntegrateRk4(flow, x0, v, 0.1, 3); });
-  // Then they agree, and the map is the same with or without sensitivities
-  EXPECT_LT((A - ax).cwiseAbs().maxCoeff(), 1e-8);
-  EXPECT_LT((B - bu).cwiseAbs().maxCoeff(), 1e-8);
-  EXPECT_EQ(x1, model::IntegrateRk4(flow, x0, u, 0.1, 3));
 }
 
 TEST(ProblemContractTest, SingleInputFirstControlIsTheLqrControl) {

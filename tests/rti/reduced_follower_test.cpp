@@ -5,9 +5,9 @@
 
 #include <random>
 
-#include "fnmpc/rti/benchmark_ocps.hpp"
+#include "bench/ocp_spec/benchmark_ocps.hpp"
 
-namespace fnmpc::rti::benchmark {
+namespace fnmpc::bench {
 namespace {
 
 template <int Nn>
@@ -15,7 +15,7 @@ void CompareOnRandomInstances(ocp::TargetFrame frame, unsigned seed, int* active
                               int* converged_instances) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
-  RtiSettings settings = SpecSettings();
+  rti::RtiSettings settings = SpecSettings();
   settings.kkt_threshold = 1e-10;
   settings.max_initial_iterations = 300;
   for (int trial = 0; trial < 6; ++trial) {
@@ -40,9 +40,9 @@ void CompareOnRandomInstances(ocp::TargetFrame frame, unsigned seed, int* active
     // that its iteration cap is >= 1, so it warns -Wmaybe-uninitialized)
     Vec3 u_full = Vec3::Zero(), u_reduced = Vec3::Zero();
     // When both converge
-    ASSERT_EQ(full.Step(FollowerState<Nn>(own, nb), &u_full), RtiStatus::kSuccess);
+    ASSERT_EQ(full.Step(FollowerState<Nn>(own, nb), &u_full), rti::RtiStatus::kSuccess);
     ASSERT_EQ(reduced.Step(SetReducedFollowerStage<Nn>(&reduced, own, nb), &u_reduced),
-              RtiStatus::kSuccess);
+              rti::RtiStatus::kSuccess);
     // Full-step Gauss-Newton SQP (no globalisation) may cycle on hard instances; the two
     // formulations take the same iterates, so they converge or cycle together.
     const bool converged = full.stats().kkt < 1e-8;
@@ -78,4 +78,4 @@ TEST(ReducedFollowerTest, SameFirstControlAsFullFormulation) {
 }
 
 }  // namespace
-}  // namespace fnmpc::rti::benchmark
+}  // namespace fnmpc::bench

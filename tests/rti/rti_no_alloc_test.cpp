@@ -5,10 +5,10 @@
 
 #include <vector>
 
-#include "fnmpc/rti/benchmark_ocps.hpp"
+#include "bench/ocp_spec/benchmark_ocps.hpp"
 #include "tests/support/allocation_counter.hpp"
 
-namespace fnmpc::rti::benchmark {
+namespace fnmpc::bench {
 namespace {
 
 TEST(RtiNoAllocTest, LeaderStepsDoNotAllocate) {
@@ -88,4 +88,4 @@ TEST(RtiNoAllocTest, CounterSeesAllocations) {
 }
 
 }  // namespace
-}  // namespace fnmpc::rti::benchmark
+}  // namespace fnmpc::bench

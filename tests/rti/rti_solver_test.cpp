@@ -3,9 +3,9 @@
 
 #include <gtest/gtest.h>
 
-#include "fnmpc/rti/benchmark_ocps.hpp"
+#include "bench/ocp_spec/benchmark_ocps.hpp"
 
-namespace fnmpc::rti::benchmark {
+namespace fnmpc::bench {
 namespace {
 
 Vec<9> Hover(const Vec3& p) {
@@ -20,9 +20,9 @@ TEST(RtiSolverTest, FirstCallConvergesBelowKktThreshold) {
   SetLeaderReferences(&solver, ReferenceTrajectory(Scenario::kNominal), 0.0);
   Vec3 u;
   // When the first call runs (Algorithm 1, t = 0)
-  const RtiStatus status = solver.Step(Hover(Vec3(1, 0, 1)), &u);
+  const rti::RtiStatus status = solver.Step(Hover(Vec3(1, 0, 1)), &u);
   // Then it iterated to KKT < 1e-6 and moves towards the reference
-  EXPECT_EQ(status, RtiStatus::kSuccess);
+  EXPECT_EQ(status, rti::RtiStatus::kSuccess);
   EXPECT_GT(solver.stats().sqp_iterations, 1);
   EXPECT_LT(solver.stats().kkt, 1e-6);
   EXPECT_LT(u[2], 0.0);                   // negative pitch accelerates towards -x
@@ -42,7 +42,7 @@ TEST(RtiSolverTest, LaterCallsDoOneIterationByDefault) {
 }
 
 TEST(RtiSolverTest, MoreIterationsWithinBudgetReachThreshold) {
-  RtiSettings settings = SpecSettings();
+  rti::RtiSettings settings = SpecSettings();
   settings.max_iterations = 20;
   auto solver = MakeLeaderSolver(Hover(Vec3(0, 0, 1)), settings);
   const ReferenceTrajectory ref(Scenario::kNominal);
@@ -67,9 +67,9 @@ TEST(RtiSolverTest, NanStateFallsBackToShiftedSolution) {
   // When the state estimate is NaN
   Vec<9> bad = Hover(Vec3(0.5, 0, 1));
   bad[4] = kNaN;
-  const RtiStatus status = solver.Step(bad, &u);
+  const rti::RtiStatus status = solver.Step(bad, &u);
   // Then the shifted previous solution is applied, flagged and counted, never NaN
-  EXPECT_EQ(status, RtiStatus::kInvalidInput);
+  EXPECT_EQ(status, rti::RtiStatus::kInvalidInput);
   EXPECT_TRUE(solver.stats().fallback);
   EXPECT_EQ(solver.stats().fallback_count, 1);
   EXPECT_TRUE(u.allFinite());
@@ -88,8 +88,8 @@ TEST(RtiSolverTest, InfeasibleQpFallsBack) {
   ub[3] = 2.0;
   solver.SetStateBounds(1, lb, ub);
   const Vec3 shifted = solver.inputs()[0];
-  const RtiStatus status = solver.Step(Hover(Vec3(0, 0, 1)), &u);
-  EXPECT_EQ(status, RtiStatus::kQpFailure);
+  const rti::RtiStatus status = solver.Step(Hover(Vec3(0, 0, 1)), &u);
+  EXPECT_EQ(status, rti::RtiStatus::kQpFailure);
   EXPECT_EQ(solver.stats().qp_status, qp::QpStatus::kInfeasible);
   EXPECT_TRUE(solver.stats().fallback);
   EXPECT_EQ(u, shifted);
@@ -102,10 +102,10 @@ TEST(RtiSolverTest, SoftRelativeBoundsKeepQpFeasibleOutsideBounds) {
   auto solver = MakeFollowerSolver<2>(Vec<6>::Zero(), nb);
   Vec3 u;
   // When it solves
-  const RtiStatus status = solver.Step(FollowerState<2>(Vec<6>::Zero(), nb), &u);
+  const rti::RtiStatus status = solver.Step(FollowerState<2>(Vec<6>::Zero(), nb), &u);
   // Then the QP stays feasible, the slack absorbs the violation, and the follower
   // moves back inside (towards +x)
-  EXPECT_EQ(status, RtiStatus::kSuccess);
+  EXPECT_EQ(status, rti::RtiStatus::kSuccess);
   EXPECT_GT(solver.slack(1), 0.5);
   EXPECT_LT(solver.states()[15][6], 7.0);
 }
@@ -115,7 +115,7 @@ TEST(RtiSolverTest, SoftBoundIsExactWhenFeasible) {
   // the desired 1.0: reachable in 0.5 s, so the hard problem is feasible
   std::array<NeighbourState, 2> nb{NeighbourState{kD1, Vec3::Zero()},
                                    NeighbourState{kD2, Vec3::Zero()}};
-  RtiSettings settings = SpecSettings();
+  rti::RtiSettings settings = SpecSettings();
   settings.max_initial_iterations = 100;
   auto solver = MakeFollowerSolver<2>(Vec<6>::Zero(), nb, settings);
   Vec<22> lb = solver.lower_state_bound(1), ub = solver.upper_state_bound(1);
@@ -123,7 +123,7 @@ TEST(RtiSolverTest, SoftBoundIsExactWhenFeasible) {
   for (int k = 10; k <= 15; ++k) solver.SetStateBounds(k, lb, ub);
   Vec3 u;
   // When it converges
-  ASSERT_EQ(solver.Step(FollowerState<2>(Vec<6>::Zero(), nb), &u), RtiStatus::kSuccess);
+  ASSERT_EQ(solver.Step(FollowerState<2>(Vec<6>::Zero(), nb), &u), rti::RtiStatus::kSuccess);
   // Then the bound is active and met without slack: the exact penalty is exact
   double worst = -kInf;
   for (int k = 10; k <= 15; ++k) worst = std::max(worst, solver.states()[k][6] - 0.9);
@@ -133,14 +133,15 @@ TEST(RtiSolverTest, SoftBoundIsExactWhenFeasible) {
 }
 
 TEST(RtiSolverTest, InvalidSettingsAreRejected) {
-  RtiSettings s;
+  rti::RtiSettings s;
   s.horizon = 0;
   EXPECT_THROW(MakeLeaderSolver(Hover(Vec3::Zero()), s), std::invalid_argument);
-  s = RtiSettings{};
+  s = rti::RtiSettings{};
   s.sample_time = -0.05;
   EXPECT_THROW(MakeLeaderSolver(Hover(Vec3::Zero()), s), std::invalid_argument);
-  EXPECT_THROW((RtiSolver<ocp::LeaderProblem>({}, RtiSettings{}, {{3, 42}, {false, false}})),
-               std::invalid_argument);
+  EXPECT_THROW(
+      (rti::RtiSolver<ocp::LeaderProblem>({}, rti::RtiSettings{}, {{3, 42}, {false, false}})),
+      std::invalid_argument);
 }
 
 // ---- Closed loop: the quality goals of the benchmark spec ----
@@ -175,7 +176,7 @@ TEST(RtiClosedLoopTest, UnconstrainedShortcutGivesTheSameLoop) {
   for (ProblemId p : {ProblemId::kL, ProblemId::kF2, ProblemId::kF6, ProblemId::kF2Reduced}) {
     for (Scenario sc : {Scenario::kNominal, Scenario::kAggressive}) {
       // Given: the same closed loop with and without the unconstrained Riccati step
-      RtiSettings off = SpecSettings();
+      rti::RtiSettings off = SpecSettings();
       off.unconstrained_shortcut = false;
       const auto with = RunClosedLoop(p, sc, 260);
       const auto without = RunClosedLoop(p, sc, 260, off);
@@ -222,4 +223,4 @@ TEST(RtiClosedLoopTest, ReducedAndFullFollowersFlyTheSameLoop) {
 }
 
 }  // namespace
-}  // namespace fnmpc::rti::benchmark
+}  // namespace fnmpc::bench

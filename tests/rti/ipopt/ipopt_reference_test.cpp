@@ -18,14 +18,14 @@
 #include <string>
 #include <vector>
 
+#include "bench/ocp_spec/benchmark_ocps.hpp"
 #include "fnmpc/core/types.hpp"
 #include "fnmpc/model/follower_model.hpp"
 #include "fnmpc/model/quadrotor_model.hpp"
 #include "fnmpc/model/rk4.hpp"
-#include "fnmpc/rti/benchmark_ocps.hpp"
 #include "fnmpc/rti/rti_solver.hpp"
 
-namespace fnmpc::rti::benchmark {
+namespace fnmpc::bench {
 namespace {
 
 /// Infinite bound for IPOPT (anything beyond +-1e19 is treated as absent).
@@ -464,8 +464,8 @@ void ExpectAgreement(Solver* solver, ShootingOcp<Model> ocp, const Vec<Model::kN
   const ShootingSolution<Model> ref = SolveWithIpopt(ocp);
   ASSERT_EQ(ref.status, Ipopt::Solve_Succeeded) << name;
   Vec<Model::kNu> u0;
-  const RtiStatus status = solver->Step(x0, &u0);
-  ASSERT_EQ(status, RtiStatus::kSuccess) << name;
+  const rti::RtiStatus status = solver->Step(x0, &u0);
+  ASSERT_EQ(status, rti::RtiStatus::kSuccess) << name;
   const double kkt = solver->ComputeKkt(x0);
   const Deviation dev = Compare(*solver, ref);
   const ActiveBounds active = FindActiveBounds(ocp, ref, 1e-6);
@@ -586,4 +586,4 @@ TEST(RtiIpoptTest, FollowerWithActiveRelativePositionBoundMatchesIpopt) {
 }
 
 }  // namespace
-}  // namespace fnmpc::rti::benchmark
+}  // namespace fnmpc::bench
