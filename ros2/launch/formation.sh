@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: BSD-3-Clause
+# Launches a formation on ROS 2 topics (docs/ros2.md): the simulator node and one vehicle node
+# per vehicle of SCENARIO (namespace /<vehicle>), on the shipped loopback Cyclone configuration
+# unless CYCLONEDDS_URI is set. Ends when the scenario ends (or on Ctrl-C), stopping the
+# vehicle nodes with SIGINT; exit status: the simulator's.
+#   ros2/launch/formation.sh BUILD_DIR SCENARIO OUT_DIR [-- simulator node arguments, e.g. -p seed:=2]
+# OUT_DIR gets truth.csv (simulator) and one log per node.
+set -euo pipefail
+here=$(cd "$(dirname "$0")/.." && pwd)
+build=$1 scenario=$2 out=$3
+shift 3
+[[ ${1:-} == -- ]] && shift
+mkdir -p "$out"
+export CYCLONEDDS_URI=${CYCLONEDDS_URI:-file://$here/config/cyclonedds-loopback.xml}
+params=$here/config/formation.params.yaml
+mapfile -t vehicles < <(/usr/bin/python3 -c 'import sys, yaml
+for v in yaml.safe_load(open(sys.argv[1]))["vehicles"]: print(v["name"])' "$scenario")
+pids=()
+stop() { for p in "${pids[@]}"; do kill -INT "$p" 2>/dev/null || true; done; }
+trap 'stop; kill -INT ${sim_pid:-0} 2>/dev/null || true' INT TERM
+for v in "${vehicles[@]}"; do
+  "$build/ros2/fnmpc_ros2_vehicle" --ros-args -r __ns:=/"$v" --params-file "$params" \
+    -p scenario:="$scenario" >"$out/$v.log" 2>&1 &
+  pids+=($!)
+  echo "formation: vehicle node /$v (pid $!)"
+done
+"$build/ros2/fnmpc_ros2_sim" --ros-args -r __node:=sim --params-file "$params" -p scenario:="$scenario" \
+  -p truth_csv:="$out/truth.csv" "$@" >"$out/sim.log" 2>&1 &
+sim_pid=$!
+echo "formation: simulator node /sim (pid $sim_pid)"
+rc=0
+wait "$sim_pid" || rc=$?
+stop
+for p in "${pids[@]}"; do wait "$p" 2>/dev/null || true; done
+echo "formation: simulator exit $rc; $(tail -1 "$out/sim.log")"
+exit "$rc"
