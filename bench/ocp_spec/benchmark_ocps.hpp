@@ -137,7 +137,7 @@ ClosedLoopResult RunClosedLoop(ProblemId problem, Scenario scenario, int steps =
 
 /// Step markers of RunClosedLoop: empty and never inlined, so that an instruction counter
 /// under emulation finds the control steps by these functions' addresses
-/// (scripts/onboard-count.py, docs/onboard.md). `step` is the control step's index.
+/// (studies/onboard/onboard-count.py, docs/onboard.md). `step` is the control step's index.
 extern "C" void fnmpc_bench_step_begin(int step);
 extern "C" void fnmpc_bench_step_end(int step);
 

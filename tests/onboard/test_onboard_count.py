@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: BSD-3-Clause
-"""scripts/onboard-count.py without qemu: the qemu-log parser that counts the instructions of a
-control step, and the active-set line fitted from a counts CSV (docs/onboard.md)."""
+"""studies/onboard/onboard-count.py without qemu: the qemu-log parser that counts the
+instructions of a control step, and the active-set line fitted from a counts CSV
+(docs/onboard.md)."""
 import importlib.util
 import os
 import subprocess
@@ -9,7 +10,7 @@ import sys
 import pytest
 
 SCRIPT = os.path.join(os.environ.get("FNMPC_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", "..")),
-                      "scripts", "onboard-count.py")
+                      "studies", "onboard", "onboard-count.py")
 spec = importlib.util.spec_from_file_location("onboard_count", SCRIPT)
 onboard_count = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(onboard_count)

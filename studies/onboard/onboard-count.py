@@ -12,9 +12,9 @@ blocks executed between the calls of fnmpc_bench_step_begin and fnmpc_bench_step
 instruction per block instead (slower; every executed block is one instruction), the
 check of the block-size count.
 
-  scripts/onboard-count.py BUILD/apps/fnmpc/fnmpc [--problem L ...] [--scenario nominal ...]
+  studies/onboard/onboard-count.py BUILD/apps/fnmpc/fnmpc [--problem L ...] [--scenario nominal ...]
       [--steps K] [--csv FILE] [--json FILE] [--singlestep] [--fit-active-set REFERENCE]
-  scripts/onboard-count.py --from-csv FILE [--problem ...] --fit-active-set REFERENCE
+  studies/onboard/onboard-count.py --from-csv FILE [--problem ...] --fit-active-set REFERENCE
 
 Prints one line per problem and scenario: steps counted (step 0, the initial convergence,
 left out as in `fnmpc bench`), median, p99 and maximum instructions per step.
