@@ -23,9 +23,10 @@
 #include <vector>
 
 #include "apps/fnmpc/commands.hpp"
-#include "fnmpc/config/output_files.hpp"
 #include "fnmpc/autopilot/measurement_messages.hpp"
+#include "fnmpc/config/output_files.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
+#include "fnmpc/core/relative_sensor.hpp"
 #include "fnmpc/core/rotation.hpp"
 #include "fnmpc/link/link_address.hpp"
 #include "fnmpc/link/mavlink_connection.hpp"
@@ -242,28 +243,16 @@ int Bridge(const BridgeArgs& a) {
       if (!r.enabled || !Due(r.rate_hz, b.stamp, &b.next_relative)) continue;
       const Mat3 rot_wb = RotationZyx(b.euler.x(), b.euler.y(), b.euler.z());
       for (int j = 0; j < nv; ++j) {
-        // The same geometry as the simulator's relative sensor (sim::World): body-frame
-        // offset, range, bearing, elevation and relative yaw, within range and field of view.
+        // The simulator's relative-sensor model (ObserveRelative, as sim::World).
         if (j == i || !v[j].has_pose || std::abs(v[j].stamp - b.stamp) > 0.05) continue;
-        const Vec3 d_b = rot_wb.transpose() * (v[j].position - b.position);
-        const double range = d_b.norm();
-        if (range > r.max_range || range <= 0.0) continue;
-        if (r.field_of_view < 2.0 * M_PI &&
-            std::acos(std::clamp(d_b.x() / range, -1.0, 1.0)) > 0.5 * r.field_of_view) {
+        Measurement m;
+        if (!ObserveRelative(r, rot_wb, b.position, b.euler.z(), j, v[j].position, v[j].euler.z(),
+                             b.rng, uniform, normal, &m.relative)) {
           continue;
         }
-        if (uniform(b.rng) < r.dropout_probability) continue;
-        Measurement m;
         m.kind = SensorKind::kRelative;
         m.vehicle = i;
         m.stamp = b.stamp;
-        RelativeObservation& o = m.relative;
-        o.target = j;
-        o.range = range + r.noise.x() * (1.0 + r.range_noise_growth * range) * normal(b.rng);
-        o.bearing = WrapAngle(std::atan2(d_b.y(), d_b.x()) + r.noise.y() * normal(b.rng));
-        o.elevation = std::clamp(std::asin(d_b.z() / range) + r.noise.z() * normal(b.rng),
-                                 -M_PI / 2, M_PI / 2);
-        o.relative_yaw = WrapAngle(v[j].euler.z() - b.euler.z() + r.noise2.x() * normal(b.rng));
         mavlink::Message msg;
         if (autopilot::ToMessage(m, &msg) && b.conn->Send(msg)) ++b.relative_sent;
       }
@@ -288,7 +277,8 @@ int Bridge(const BridgeArgs& a) {
                                   {"first_bad_line", first_bad}, {"vehicles", vehicles}};
   if (!a.out.empty()) {
     std::filesystem::create_directories(a.out);
-    config::WriteFileAtomically(config::PathInside(a.out, "bridge-summary.json"), summary.dump(2) + "\n");
+    config::WriteFileAtomically(config::PathInside(a.out, "bridge-summary.json"),
+                                summary.dump(2) + "\n");
   }
   if (!a.quiet) {
     fmt::print(stderr, "[bridge] done: {} bad pose lines{}\n", bad_lines,

@@ -16,7 +16,7 @@
 #include "fnmpc/formation/recovery.hpp"
 #include "fnmpc/model/true_plant.hpp"
 #include "fnmpc/model/vehicle_params.hpp"
-#include "fnmpc/sim/world.hpp"
+#include "fnmpc/sim/world_settings.hpp"
 
 /// Formation scenario files (config/scenarios/*.yaml, every key documented in
 /// docs/scenarios.md): plain structs, mapped onto the controllers and the world by the app.

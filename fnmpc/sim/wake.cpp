@@ -64,6 +64,30 @@ double WakeTravelTime(const DownwashSettings& s, double thrust, double dist) {
   return s_cap / cap + uncapped(s_cap, dist);
 }
 
+void WakeSources::Add(const Vec3& position, const Vec3& thrust_axis) {
+  lo = lo.cwiseMin(position);
+  hi = hi.cwiseMax(position);
+  min_axis_z = std::min(min_axis_z, thrust_axis.z());
+}
+
+double WakeHorizontalReach(const DownwashSettings& s, const WakeSources& sources, double lowest_z) {
+  if (!(sources.hi.z() >= sources.lo.z())) return 0.0;  // no source
+  const double cos_tilt = std::min(1.0, sources.min_axis_z);
+  const double sin_tilt = std::sqrt(std::max(0.0, 1.0 - cos_tilt * cos_tilt));
+  const double c = s.cutoff_half_widths;
+  const double denominator = cos_tilt - c * s.spreading_rate * sin_tilt;
+  if (!(denominator > 0.0)) return kInf;
+  const double depth = std::max(0.0, sources.hi.z() - lowest_z + c * s.wake_radius * sin_tilt);
+  const double deepest = depth / denominator;
+  return deepest * sin_tilt + c * (s.wake_radius + s.spreading_rate * deepest);
+}
+
+double WakeTop(const DownwashSettings& s, const WakeSources& sources) {
+  const double cos_tilt = std::min(1.0, sources.min_axis_z);
+  const double sin_tilt = std::sqrt(std::max(0.0, 1.0 - cos_tilt * cos_tilt));
+  return sources.hi.z() + s.cutoff_half_widths * s.wake_radius * sin_tilt;
+}
+
 WakeHistory::WakeHistory(const DownwashSettings& downwash, const WakeTurbulenceSettings& turb)
     : dw_(downwash), turb_(turb) {
   turb_.Validate();
@@ -75,6 +99,12 @@ void WakeHistory::Record(double t, const Vec3& position, const Vec3& thrust_axis
   head_ = (head_ + 1) % static_cast<int>(ring_.size());
   ring_[head_] = {t, position, thrust_axis, thrust};
   size_ = std::min(size_ + 1, static_cast<int>(ring_.size()));
+  const int n = static_cast<int>(ring_.size());
+  sources_ = WakeSources{};
+  for (int k = 0; k < size_; ++k) {
+    const Sample& x = ring_[(head_ - k + n) % n];
+    sources_.Add(x.position, x.axis);
+  }
 }
 
 const WakeHistory::Sample& WakeHistory::At(double t) const {

@@ -39,6 +39,31 @@ double WakeTravelTime(const DownwashSettings& settings, double thrust, double s)
 double WakeCentrelineVelocity(const DownwashSettings& settings, double thrust, double s);
 double WakeHalfWidth(const DownwashSettings& settings, double s);
 
+/// Where a wake's sources were: the bounding box of the rotor states a wake is evaluated from
+/// and the smallest vertical component of their thrust axes (the largest tilt).
+struct WakeSources {
+  Vec3 lo = Vec3::Constant(kInf);
+  Vec3 hi = Vec3::Constant(-kInf);
+  double min_axis_z = 1.0;
+  /// Adds one source state.
+  void Add(const Vec3& position, const Vec3& thrust_axis);
+};
+
+/// Horizontal reach [m] of the wakes of `sources` at points no lower than `lowest_z` [m]: a
+/// point farther (horizontally) from the sources' box can feel none of them. From the jet's own
+/// extent (DownwashVelocity): zero above the rotor plane and beyond cutoff_half_widths half
+/// widths r_half(s) = wake_radius + spreading_rate s; the deepest downstream distance s that
+/// still reaches z >= lowest_z under a tilt theta (cos theta >= min_axis_z) is D = (depth + c
+/// r0 sin theta) / (cos theta - c S sin theta) with depth = top of the box - lowest_z, and the
+/// reach D sin theta + c (r0 + S D). Infinite when the tilt is too large for a bound
+/// (cos theta <= c S sin theta, beyond about 74 degrees with the defaults).
+double WakeHorizontalReach(const DownwashSettings& settings, const WakeSources& sources,
+                           double lowest_z);
+
+/// Highest z [m] any point of the wakes of `sources` reaches: the jet acts below its rotor
+/// plane only, so at most cutoff_half_widths wake_radius sin theta above the highest source.
+double WakeTop(const DownwashSettings& settings, const WakeSources& sources);
+
 /// History of one vehicle's rotor state and the wake it leaves.
 class WakeHistory {
  public:
@@ -52,6 +77,8 @@ class WakeHistory {
   Vec3 MeanVelocity(double t, const Vec3& point, double* centreline = nullptr,
                     double* half_width = nullptr, Vec3* axis = nullptr,
                     double* radius = nullptr) const;
+  /// The rotor states MeanVelocity can evaluate (every kept sample; empty before the first).
+  [[nodiscard]] const WakeSources& sources() const { return sources_; }
 
  private:
   struct Sample {
@@ -66,6 +93,7 @@ class WakeHistory {
   std::vector<Sample> ring_;
   int head_ = -1;  // newest
   int size_ = 0;
+  WakeSources sources_;  // of the kept samples, renewed at each kept sample
 };
 
 /// Turbulent fluctuation of one vehicle's wake as seen by one other vehicle: a unit-variance
