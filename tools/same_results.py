@@ -6,9 +6,10 @@
   /usr/bin/python3 tools/same_results.py compare DIR_A DIR_B
 
 `record` flies every shipped scenario under config/scenarios/ (top level and stress/; not
-scale/, minutes each), a 12-run slice of the fault campaign (studies/faults-and-safety/fault-campaign.py
---runs 12 --keep), the `fnmpc bench` closed loops (--json) and a sysid round trip
-(`sysid synth` then `sysid` and `calibrate`), writing each into OUT_DIR. --quick flies only
+scale/, minutes each), a 12-run slice of the fault campaign
+(studies/faults-and-safety/fault-campaign.py --runs 12 --keep), the `fnmpc bench` closed
+loops (--json) and a sysid round trip (`sysid synth` then `sysid` and `calibrate`), writing
+each into OUT_DIR. --quick flies only
 triangle, stress/kill-follower and the bench.
 
 `compare` walks DIR_A and reports every file that differs from DIR_B, ignoring what is
@@ -47,8 +48,8 @@ def record(fnmpc, out, quick):
         subprocess.run([fnmpc, "bench", "--json"], stdout=f, stderr=subprocess.DEVNULL)
     if quick:
         return
-    run(["/usr/bin/python3", os.path.join(ROOT, "studies/faults-and-safety/fault-campaign.py"), "--fnmpc", fnmpc,
-         "--runs", "12", "--keep", "--out", os.path.join(out, "faults")])
+    run(["/usr/bin/python3", os.path.join(ROOT, "studies/faults-and-safety/fault-campaign.py"),
+         "--fnmpc", fnmpc, "--runs", "12", "--keep", "--out", os.path.join(out, "faults")])
     synth = os.path.join(out, "sysid")
     run([fnmpc, "sysid", "synth", synth])
     run([fnmpc, "sysid", os.path.join(synth, "campaign.yaml"), "-o",
