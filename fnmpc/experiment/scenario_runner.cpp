@@ -144,7 +144,7 @@ config::ScenarioConfig Shortened(const config::ScenarioConfig& scenario, double 
 
 json RunScenario(const config::ScenarioConfig& sc, const RunOptions& options,
                  const std::string& dir) {
-  const RunRecord record = RunClosedLoop(sc, options, dir);
+  const RunRecord record = RecordRun(sc, options, dir);
   std::vector<std::string> fault_lines;
   json s = RunSummary(sc, options, record, &fault_lines);
   for (const std::string& line : fault_lines) {
