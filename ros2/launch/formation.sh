@@ -4,12 +4,15 @@
 # per vehicle of SCENARIO (namespace /<vehicle>), on the shipped loopback Cyclone configuration
 # unless CYCLONEDDS_URI is set. Ends when the scenario ends (or on Ctrl-C), stopping the
 # vehicle nodes with SIGINT; exit status: the simulator's.
-#   ros2/launch/formation.sh BUILD_DIR SCENARIO OUT_DIR [-- simulator node arguments, e.g. -p seed:=2]
-# OUT_DIR gets truth.csv (simulator) and one log per node.
+#   ros2/launch/formation.sh BUILD_DIR SCENARIO OUT_DIR [--record] [-- simulator node arguments, e.g. -p seed:=2]
+# OUT_DIR gets truth.csv (simulator) and one log per node; with --record also OUT_DIR/run, the
+# run folder of `fnmpc run` written by the recorder (then: fnmpc report OUT_DIR/run).
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 build=$1 scenario=$2 out=$3
 shift 3
+record=0
+if [[ ${1:-} == --record ]]; then record=1; shift; fi
 [[ ${1:-} == -- ]] && shift
 mkdir -p "$out"
 export CYCLONEDDS_URI=${CYCLONEDDS_URI:-file://$here/config/cyclonedds-loopback.xml}
@@ -25,13 +28,23 @@ for v in "${vehicles[@]}"; do
   pids+=($!)
   echo "formation: vehicle node /$v (pid $!)"
 done
+sim_args=()
+if [[ $record == 1 ]]; then
+  "$build/ros2/fnmpc_ros2_record" --ros-args -p scenario:="$scenario" -p out:="$out/run" >"$out/record.log" 2>&1 &
+  record_pid=$!
+  echo "formation: recorder /record (pid $record_pid)"
+  sim_args=(-p ground_truth_subscribers:=1)  # the simulator waits for the recorder
+fi
 "$build/ros2/fnmpc_ros2_sim" --ros-args -r __node:=sim --params-file "$params" -p scenario:="$scenario" \
-  -p truth_csv:="$out/truth.csv" "$@" >"$out/sim.log" 2>&1 &
+  -p truth_csv:="$out/truth.csv" "${sim_args[@]}" "$@" >"$out/sim.log" 2>&1 &
 sim_pid=$!
 echo "formation: simulator node /sim (pid $sim_pid)"
 rc=0
 wait "$sim_pid" || rc=$?
 stop
 for p in "${pids[@]}"; do wait "$p" 2>/dev/null || true; done
+if [[ $record == 1 ]]; then
+  wait "$record_pid" || { echo "formation: recorder failed: $(tail -1 "$out/record.log")"; rc=1; }
+fi
 echo "formation: simulator exit $rc; $(tail -1 "$out/sim.log")"
 exit "$rc"

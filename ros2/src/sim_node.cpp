@@ -73,6 +73,8 @@ class SimNode {
     vehicle_timeout_ = o.Double("vehicle_timeout", 2.0);
     startup_timeout_ = o.Double("startup_timeout", 60.0);
     failsafe_descent_speed_ = o.Double("failsafe_descent_speed", 0.3);
+    // Observers that must not miss the start (the recorder, a test) are waited for.
+    truth_subscribers_ = o.Int("ground_truth_subscribers", 0);
     for (const auto& [name, v] : {std::pair{"vehicle_timeout", vehicle_timeout_},
                                   {"startup_timeout", startup_timeout_},
                                   {"failsafe_descent_speed", failsafe_descent_speed_},
@@ -118,6 +120,8 @@ class SimNode {
               io->battery.Subscriptions() > 0 && io->relative.Subscriptions() > 0 &&
               io->sync.Subscriptions() > 0;
       }
+      for (const auto& io : io_)
+        all = all && static_cast<int>(io->truth.Subscriptions()) >= truth_subscribers_;
       if (all) break;
       if (Since(start) > startup_timeout_) {
         throw std::runtime_error(
@@ -313,6 +317,7 @@ class SimNode {
   double duration_ = 0.0, vehicle_timeout_ = 2.0, startup_timeout_ = 60.0,
          failsafe_descent_speed_ = 0.3;
   bool lockstep_ = true;
+  int truth_subscribers_ = 0;
   std::unique_ptr<sim::World> world_;
   Participant participant_;
   std::unique_ptr<Writer<rosgraph_msgs_msg_dds__Clock_>> clock_pub_;

@@ -5,6 +5,9 @@
 #   vs-cli  the true trajectories equal `fnmpc run`'s on the same scenario and seed (every
 #           vehicle, every control instant, to the CSVs' 1e-5 m) and the followers' mean
 #           formation error over the formation window is within 5 % (the ROS 1 tolerance);
+#   record  the recorder's run folder (ros2/launch/formation.sh --record) goes through
+#           `fnmpc report` (exit 0, report.html) and its summary's mean and steady-state formation
+#           errors are within 5 % of `fnmpc run`'s;
 #   kill    follower2's node is killed (SIGKILL) once the flight passed t = 8 s: the simulator
 #           declares it dead, its autopilot's failsafe puts it on the ground, the leader and
 #           follower1 fly on to the end, the simulator finishes (exit 0).
@@ -48,6 +51,30 @@ for v in names:
 print(f'{compared} vehicle-instants compared, largest position difference {worst:.2e} m')
 if compared < 3 * 390 or worst > 2e-5:
     sys.exit('the ROS 2 run does not reproduce fnmpc run')
+PY
+    ;;
+  record)
+    "$here/launch/formation.sh" "$build" "$scenario" "$work/ros2" --record
+    "$cli" run "$scenario" -o "$work/cli" -q --threads 1 >/dev/null 2>&1 || true
+    # A build without the replay bundle (FNMPC_WITH_REPLAY=OFF) makes report exit 1 after the
+    # plots and report.html: only that failure is accepted.
+    report_rc=0
+    PATH=/usr/bin:$PATH "$cli" report "$work/ros2/run" >"$work/report.log" 2>&1 || report_rc=$?
+    if [[ $report_rc != 0 ]] && ! grep -q "replay.html not written: .*replay.bundle.js missing" "$work/report.log"; then
+      cat "$work/report.log"; exit 1
+    fi
+    for f in report.html formation_errors.png trajectories_3d.png; do
+      [[ -s $work/ros2/run/$f ]] || { cat "$work/report.log"; echo "fnmpc report wrote no $f"; exit 1; }
+    done
+    $py - "$work/ros2/run/summary.json" "$work/cli/run-01/summary.json" <<'PY'
+import json, sys
+ros, cli = (json.load(open(f)) for f in sys.argv[1:3])
+for key in ('mean_formation_error_m', 'steady_state_formation_error_m'):
+    a, b = ros[key], cli[key]
+    print(f'{key}: recorded ROS 2 run {a:.6f} m, fnmpc run {b:.6f} m')
+    assert abs(a - b) <= 0.05 * b, key
+for v in ('leader', 'follower1', 'follower2'):
+    assert ros['vehicles'][v]['control_steps'] >= 400, v
 PY
     ;;
   kill)
