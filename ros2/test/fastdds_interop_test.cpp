@@ -391,7 +391,12 @@ TEST_F(FastDdsInterop, OurReaderReceivesAFastDdsWaypoint) {
   auto* writer = fast.Writer<PoseStamped>("rt/leader/waypoint",
                                           Ros2Type<geometry_msgs_msg_dds__PoseStamped_>::kTypeHash);
   ASSERT_NE(writer, nullptr);
-  ASSERT_TRUE(WaitFor([&] { return reader.Publications() == 1; })) << "Fast DDS writer not matched";
+  // Both sides matched: a write before the Fast DDS writer knows our reader would be lost.
+  ASSERT_TRUE(WaitFor([&] {
+    fdds::PublicationMatchedStatus status;
+    writer->get_publication_matched_status(status);
+    return reader.Publications() == 1 && status.current_count == 1;
+  })) << "Fast DDS writer and Cyclone reader did not discover each other";
   PoseStamped p;
   p.header.stamp = {12, 500};
   p.header.frame_id = "world";
