@@ -4,15 +4,23 @@
 # per vehicle of SCENARIO (namespace /<vehicle>), on the shipped loopback Cyclone configuration
 # unless CYCLONEDDS_URI is set. Ends when the scenario ends (or on Ctrl-C), stopping the
 # vehicle nodes with SIGINT; exit status: the simulator's.
-#   ros2/launch/formation.sh BUILD_DIR SCENARIO OUT_DIR [--record] [-- simulator node arguments, e.g. -p seed:=2]
+#   ros2/launch/formation.sh BUILD_DIR SCENARIO OUT_DIR [--record] [--external VEHICLE]
+#                            [-- simulator node arguments, e.g. -p seed:=2]
+# --external VEHICLE: no vehicle node for VEHICLE (another program, e.g. a ROS 2 node, flies it).
 # OUT_DIR gets truth.csv (simulator) and one log per node; with --record also OUT_DIR/run, the
 # run folder of `fnmpc run` written by the recorder (then: fnmpc report OUT_DIR/run).
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 build=$1 scenario=$2 out=$3
 shift 3
-record=0
-if [[ ${1:-} == --record ]]; then record=1; shift; fi
+record=0 external=""
+while [[ $# -gt 0 && $1 != -- ]]; do
+  case $1 in
+    --record) record=1; shift ;;
+    --external) external=$2; shift 2 ;;
+    *) echo "formation: unknown option $1" >&2; exit 2 ;;
+  esac
+done
 [[ ${1:-} == -- ]] && shift
 mkdir -p "$out"
 export CYCLONEDDS_URI=${CYCLONEDDS_URI:-file://$here/config/cyclonedds-loopback.xml}
@@ -23,6 +31,7 @@ pids=()
 stop() { for p in "${pids[@]}"; do kill -INT "$p" 2>/dev/null || true; done; }
 trap 'stop; kill -INT ${sim_pid:-0} 2>/dev/null || true' INT TERM
 for v in "${vehicles[@]}"; do
+  [[ $v == "$external" ]] && { echo "formation: /$v flown by another program"; continue; }
   "$build/ros2/fnmpc_ros2_vehicle" --ros-args -r __ns:=/"$v" --params-file "$params" \
     -p scenario:="$scenario" >"$out/$v.log" 2>&1 &
   pids+=($!)

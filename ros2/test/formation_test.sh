@@ -8,6 +8,9 @@
 #   record  the recorder's run folder (ros2/launch/formation.sh --record) goes through
 #           `fnmpc report` (exit 0, report.html) and its summary's mean and steady-state formation
 #           errors are within 5 % of `fnmpc run`'s;
+#   fastdds the leader is flown by a Fast DDS program using only the ROS 2 conventions
+#           (fastdds_formation_peer, FASTDDS_PEER): it answers the leader's syncs with setpoints
+#           holding 1.5 m, receives every topic of the run and checks their types and type hashes;
 #   kill    follower2's node is killed (SIGKILL) once the flight passed t = 8 s: the simulator
 #           declares it dead, its autopilot's failsafe puts it on the ground, the leader and
 #           follower1 fly on to the end, the simulator finishes (exit 0).
@@ -52,6 +55,18 @@ print(f'{compared} vehicle-instants compared, largest position difference {worst
 if compared < 3 * 390 or worst > 2e-5:
     sys.exit('the ROS 2 run does not reproduce fnmpc run')
 PY
+    ;;
+  fastdds)
+    "$here/launch/formation.sh" "$build" "$scenario" "$work/ros2" --external leader -- \
+      -p ground_truth_subscribers:=1 >"$work/launch.log" 2>&1 &
+    launch=$!
+    peer_rc=0
+    "$FASTDDS_PEER" "$ROS_DOMAIN_ID" leader 1.37 1.5 20.0 >"$work/peer.log" 2>&1 || peer_rc=$?
+    rc=0; wait "$launch" || rc=$?
+    cat "$work/launch.log" "$work/peer.log"
+    [[ $rc == 0 && $peer_rc == 0 ]] || { echo "simulator exit $rc, peer exit $peer_rc"; exit 1; }
+    grep -q "scenario finished at t = 20.00 s, 0 vehicle(s) declared dead" "$work/ros2/sim.log" ||
+      { echo "the simulator declared a vehicle dead"; exit 1; }
     ;;
   record)
     "$here/launch/formation.sh" "$build" "$scenario" "$work/ros2" --record
