@@ -5,8 +5,9 @@
 #   <prefix>/lib/libfnmpc_<layer>.a
 #   <prefix>/lib/cmake/fnmpc/{fnmpcConfig,fnmpcConfigVersion,fnmpcTargets}.cmake
 # so that `find_package(fnmpc CONFIG REQUIRED)` gives the targets fnmpc::<layer>. The
-# configuration, simulator and sysid layers (yaml-cpp, MuJoCo, Ceres), the benchmark problems
-# of `fnmpc bench` (bench/ocp_spec) and the CLI are not part of the package.
+# simulator joins them when it is built (MuJoCo, below); the configuration and sysid layers
+# (yaml-cpp, Ceres), the benchmark problems of `fnmpc bench` (bench/ocp_spec) and the CLI are
+# not part of the package.
 include(CMakePackageConfigHelpers)
 include(GNUInstallDirs)
 
@@ -22,6 +23,17 @@ foreach(layer IN LISTS FNMPC_INSTALLED_LAYERS)
           DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/fnmpc/${layer}
           FILES_MATCHING PATTERN "*.hpp")
 endforeach()
+# The simulator, when this build has it (MuJoCo): fnmpc::sim, for programs that fly a
+# controller in simulation (examples/simulate.cpp). Its MuJoCo link goes with it as
+# fnmpc::mujoco_headless (the include directory and library this build found, by their paths).
+set(fnmpc_has_sim OFF)
+if(TARGET fnmpc_sim)
+  set(fnmpc_has_sim ON)
+  list(APPEND fnmpc_install_targets fnmpc_sim mujoco_headless)
+  set_target_properties(mujoco_headless PROPERTIES EXPORT_NAME mujoco_headless)
+  install(DIRECTORY ${PROJECT_SOURCE_DIR}/fnmpc/sim/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/fnmpc/sim
+          FILES_MATCHING PATTERN "*.hpp")
+endif()
 install(TARGETS ${fnmpc_install_targets} EXPORT fnmpcTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
