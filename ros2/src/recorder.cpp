@@ -76,11 +76,14 @@ nlohmann::json Num(double x) { return std::isfinite(x) ? nlohmann::json(x) : nlo
 
 struct VehicleTopics {
   VehicleTopics(const Participant& p, const NodeOptions& o, const std::string& v)
-      : truth(p, o.Topic("/" + v + "/" + topics::kGroundTruth), {true, 1000}),
-        setpoint(p, o.Topic("/" + v + "/" + topics::kSetpoint), {true, 1000}),
+      : setpoint(p, o.Topic("/" + v + "/" + topics::kSetpoint), {true, 1000}),
         status(p, o.Topic("/" + v + "/" + topics::kStatus), {true, 1000}),
         odom(p, o.Topic("/" + v + "/" + topics::kOdom), {true, 1000}) {}
-  Reader<nav_msgs_msg_dds__Odometry_> truth;
+  void CreateTruthReader(const Participant& p, const NodeOptions& o, const std::string& v) {
+    truth = std::make_unique<Reader<nav_msgs_msg_dds__Odometry_>>(
+        p, o.Topic("/" + v + "/" + topics::kGroundTruth), QosProfile{true, 1000});
+  }
+  std::unique_ptr<Reader<nav_msgs_msg_dds__Odometry_>> truth;
   Reader<fnmpc_msgs_msg_dds__AttitudeThrustSetpoint_> setpoint;
   Reader<fnmpc_msgs_msg_dds__ControllerStatus_> status;
   Reader<nav_msgs_msg_dds__Odometry_> odom;
@@ -217,6 +220,22 @@ int Record(const NodeOptions& o) {
   for (const auto& v : sc.vehicles)
     topics.push_back(std::make_unique<VehicleTopics>(participant, o, v.name));
   std::vector<VehicleData> data(sc.vehicles.size());
+  // The simulator starts when the ground-truth readers match (ground_truth_subscribers): those
+  // are created only after the vehicle nodes' setpoint writers are matched, so that the first
+  // setpoints are not published before the recorder can receive them (DDS topics are volatile).
+  const auto wait_start = std::chrono::steady_clock::now();
+  for (bool all = false; !all && !StopRequested();) {
+    all = true;
+    for (const auto& t : topics)
+      all = all && t->setpoint.Publications() > 0 && t->status.Publications() > 0;
+    if (std::chrono::steady_clock::now() - wait_start > std::chrono::seconds(60)) {
+      throw std::runtime_error(
+          "the vehicle nodes' setpoint and status writers did not appear within 60 s");
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  for (std::size_t i = 0; i < topics.size(); ++i)
+    topics[i]->CreateTruthReader(participant, o, sc.vehicles[i].name);
   Log(o.fully_qualified_name(), "recording {} vehicles of {} until t = {:.1f} s into {}",
       sc.vehicles.size(), scenario_file, duration, out);
   double now = -1.0;
@@ -225,7 +244,7 @@ int Record(const NodeOptions& o) {
         [&](const rosgraph_msgs_msg_dds__Clock_& c) { now = std::max(now, FromRosTime(c.clock)); });
     for (std::size_t i = 0; i < topics.size(); ++i) {
       VehicleData& d = data[i];
-      topics[i]->truth.TakeAll([&](const nav_msgs_msg_dds__Odometry_& m) {
+      topics[i]->truth->TakeAll([&](const nav_msgs_msg_dds__Odometry_& m) {
         TrueSample s;
         FromOdometry(m, &s.position, &s.velocity, &s.euler);
         d.truth[Ns(m.header.stamp)] = s;
