@@ -45,7 +45,7 @@ KINDS = ["kill_controller", "motors_off", "sensor_dropouts", "outliers", "solver
 SENSORS = ["mocap", "imu", "optical_flow", "compass", "battery", "relative"]
 COMMAND_COLUMNS = ("cmd_thrust", "cmd_roll", "cmd_pitch", "cmd_yaw")
 REST_HEIGHT = 0.1  # m, sim::World::kRestHeight: CoM height of a vehicle resting on the ground
-CONTACT_MARGIN = 0.015  # m, fnmpc run's touchdown test (apps/fnmpc/run_loop.cpp)
+CONTACT_MARGIN = 0.015  # m, fnmpc run's touchdown test (fnmpc/experiment/run_observers.cpp)
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # studies/<section>/
 
 
