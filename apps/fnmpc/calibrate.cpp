@@ -14,9 +14,9 @@
 #include <vector>
 
 #include "apps/fnmpc/commands.hpp"
-#include "fnmpc/config/output_files.hpp"
 #include "apps/fnmpc/sysid_report.hpp"
 #include "fnmpc/config/csv_reader.hpp"
+#include "fnmpc/config/output_files.hpp"
 #include "fnmpc/config/vehicle_yaml.hpp"
 #include "fnmpc/sysid/angles.hpp"
 #include "fnmpc/sysid/calibration.hpp"

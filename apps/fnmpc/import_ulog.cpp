@@ -581,9 +581,9 @@ int RunImportUlog(const ImportOptions& o) {
   nlohmann::json files = {{"attitude_steps", "attitude_steps.csv"}};
   if (!fl[0].empty()) {
     config::WriteFileAtomically(config::PathInside(o.output, "flight.csv"),
-                        Csv({"t", "x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw",
-                             "thrust_cmd", "roll_cmd", "pitch_cmd", "yaw_cmd", "voltage"},
-                            fl));
+                                Csv({"t", "x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw",
+                                     "thrust_cmd", "roll_cmd", "pitch_cmd", "yaw_cmd", "voltage"},
+                                    fl));
     files["flight"] = "flight.csv";
     summary["flight_rows"] = fl[0].size();
     summary["thrust_cmd_scale_N"] = o.mass * kGravity / u_hover;

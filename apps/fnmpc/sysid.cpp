@@ -20,10 +20,10 @@
 #include <vector>
 
 #include "apps/fnmpc/commands.hpp"
-#include "fnmpc/config/output_files.hpp"
 #include "apps/fnmpc/sysid_report.hpp"
 #include "fnmpc/config/campaign_yaml.hpp"
 #include "fnmpc/config/csv_reader.hpp"
+#include "fnmpc/config/output_files.hpp"
 #include "fnmpc/config/vehicle_yaml.hpp"
 #include "fnmpc/sysid/angles.hpp"
 #include "fnmpc/sysid/attitude_fit.hpp"
