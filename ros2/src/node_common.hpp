@@ -30,6 +30,13 @@ inline void InstallStopHandlers() {
 inline QosProfile SensorQos(bool lockstep) {
   return lockstep ? QosProfile{true, 1000} : QosProfile::SensorData();
 }
+// The run's other streams (setpoints, estimates, status, ground truth, /clock): ROS 2's default
+// profile, deepened in lockstep, where the simulator runs many times faster than real time and a
+// KEEP_LAST 10 writer drops samples a remote reader has not acknowledged yet (a Fast DDS reader
+// missed half the setpoints of a run that way).
+inline QosProfile StreamQos(bool lockstep) {
+  return lockstep ? QosProfile{true, 1000} : QosProfile::Default();
+}
 
 template <typename... Args>
 void Log(const std::string& node, fmt::format_string<Args...> format, Args&&... args) {

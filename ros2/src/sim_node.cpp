@@ -41,8 +41,8 @@ struct VehicleIo {
         battery(p, o.Topic("/" + name + "/" + topics::kBattery), SensorQos(lockstep)),
         relative(p, o.Topic("/" + name + "/" + topics::kRelative), SensorQos(lockstep)),
         sync(p, o.Topic("/" + name + "/" + topics::kSync), QosProfile::Default()),
-        truth(p, o.Topic("/" + name + "/" + topics::kGroundTruth), QosProfile::Default()),
-        setpoint(p, o.Topic("/" + name + "/" + topics::kSetpoint), QosProfile::Default()) {}
+        truth(p, o.Topic("/" + name + "/" + topics::kGroundTruth), StreamQos(lockstep)),
+        setpoint(p, o.Topic("/" + name + "/" + topics::kSetpoint), StreamQos(lockstep)) {}
   std::string name, body_frame;
   Writer<geometry_msgs_msg_dds__PoseStamped_> pose;
   Writer<sensor_msgs_msg_dds__Imu_> imu;
@@ -91,7 +91,7 @@ class SimNode {
     world_ = std::make_unique<sim::World>(
         experiment::WorldConfigFor(scenario_, static_cast<std::uint64_t>(seed)));
     clock_pub_ = std::make_unique<Writer<rosgraph_msgs_msg_dds__Clock_>>(
-        participant_, o.Topic("/clock"), QosProfile::Default());
+        participant_, o.Topic("/clock"), StreamQos(lockstep_));
     for (const auto& v : scenario_.vehicles)
       io_.push_back(std::make_unique<VehicleIo>(participant_, o, v.name, lockstep_));
     const std::string csv = o.String("truth_csv", "");

@@ -46,9 +46,9 @@ class VehicleNode {
         scenario_(config::LoadScenarioFile(o.RequiredString("scenario"))),
         name_(o.String("vehicle", o.node_namespace().substr(o.node_namespace().rfind('/') + 1))),
         lockstep_(o.Bool("lockstep", false)),
-        setpoint_pub_(participant_, o.Topic(topics::kSetpoint), QosProfile::Default()),
-        odom_pub_(participant_, o.Topic(topics::kOdom), QosProfile::Default()),
-        status_pub_(participant_, o.Topic(topics::kStatus), QosProfile::Default()),
+        setpoint_pub_(participant_, o.Topic(topics::kSetpoint), StreamQos(lockstep_)),
+        odom_pub_(participant_, o.Topic(topics::kOdom), StreamQos(lockstep_)),
+        status_pub_(participant_, o.Topic(topics::kStatus), StreamQos(lockstep_)),
         pose_(participant_, o.Topic(topics::kMocapPose), SensorQos(lockstep_)),
         imu_(participant_, o.Topic(topics::kImu), SensorQos(lockstep_)),
         flow_(participant_, o.Topic(topics::kOpticalFlow), SensorQos(lockstep_)),
@@ -56,7 +56,7 @@ class VehicleNode {
         battery_(participant_, o.Topic(topics::kBattery), SensorQos(lockstep_)),
         relative_(participant_, o.Topic(topics::kRelative), SensorQos(lockstep_)),
         sync_(participant_, o.Topic(topics::kSync), QosProfile::Default()),
-        clock_(participant_, o.Topic("/clock"), QosProfile::Default()) {
+        clock_(participant_, o.Topic("/clock"), StreamQos(lockstep_)) {
     for (std::size_t i = 0; i < scenario_.vehicles.size(); ++i) {
       if (scenario_.vehicles[i].name == name_) index_ = static_cast<int>(i);
     }

@@ -58,12 +58,26 @@ int main(int argc, char** argv) {
   // against the Cyclone side's USER_DATA below, not taken from it).
   std::map<std::string, fdds::DataReader*> truth, setpoints, odoms;
   for (const auto& v : vehicles) {
-    truth[v] = fast.Reader<Odometry>("rt/" + v + "/ground_truth", true, 1000);
     if (v != me) {
       setpoints[v] = fast.Reader<Setpoint>("rt/" + v + "/setpoint", true, 1000);
       odoms[v] = fast.Reader<Odometry>("rt/" + v + "/odom", true, 1000);
     }
   }
+  // The simulator starts once the ground-truth readers match (ground_truth_subscribers): they
+  // are created after the vehicle nodes' writers matched these readers, or the first setpoints
+  // would be published before Fast DDS could receive them (volatile topics).
+  const bool matched = WaitFor([&] {
+    for (const auto& [v, r] : setpoints) {
+      fdds::SubscriptionMatchedStatus a, b;
+      r->get_subscription_matched_status(a);
+      odoms[v]->get_subscription_matched_status(b);
+      if (a.current_count == 0 || b.current_count == 0) return false;
+    }
+    return true;
+  });
+  Check(matched, "the followers' setpoint and odom writers discovered");
+  for (const auto& v : vehicles)
+    truth[v] = fast.Reader<Odometry>("rt/" + v + "/ground_truth", true, 1000);
   std::string setpoint_hash;
   // Wait for the simulator's writers to be discovered, then take their setpoint type hash.
   WaitFor([&] {
