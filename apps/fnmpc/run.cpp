@@ -145,7 +145,8 @@ void Register(CLI::App& app, std::vector<Command>& registry) {
                   "with --jobs 1")
       ->check(CLI::Range(1, 256));
   sub->add_option("--threads", a->threads,
-                  "threads per run for its vehicles' estimators and controllers (default: the "
+                  "threads per run for its vehicles' estimators and controllers, and from 16 "
+                  "vehicles on for the world's sensors and aerodynamics (default: the "
                   "CPUs divided by --jobs; from 2 on, one more feeds the measurements while the "
                   "world steps); the run folder is the same whatever the count, timing columns "
                   "aside")

@@ -3,11 +3,18 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 
 #include "fnmpc/onboard/controller_setup.hpp"
 
 namespace fnmpc::experiment {
+
+namespace {
+// From this many vehicles the world's per-step work is shared with the pool's threads (each
+// share costs a wake-up of the workers, 2 per millisecond step).
+constexpr int kWorldParallelMinVehicles = 16;
+}  // namespace
 
 ClosedLoop::ClosedLoop(const config::ScenarioConfig& scenario, const RunOptions& options)
     : sc_(scenario),
@@ -63,6 +70,13 @@ ClosedLoop::ClosedLoop(const config::ScenarioConfig& scenario, const RunOptions&
   // inboxes, which the vehicles' tasks empty in parallel.
   if (pool_->threads() > 1) {
     feeder_.emplace([this](const Measurement& x) { ctrl_[x.vehicle]->Process(x); });
+  }
+  // The world's per-vehicle work of each physics step (sensors, the aerodynamic pass) on the
+  // same threads while the controllers wait (bit-identical to one thread, sim::World::
+  // SetParallelFor); below kWorldParallelMinVehicles a step's work is too small to share.
+  if (pool_->threads() > 1 && nv_ >= kWorldParallelMinVehicles) {
+    world_->world().SetParallelFor(
+        [pool = pool_.get()](int n, const std::function<void(int)>& f) { pool->ForEach(n, f); });
   }
   outs_.resize(n);
   truth_.resize(n);

@@ -250,18 +250,18 @@ struct World::Impl {
     const double t = Time();
     const double dt = config.physics_dt;
     const int n = static_cast<int>(vehicles.size());
-    EachVehicle([&](int i) { kin[i] = KinematicsOf(vehicles[i]); });
+    for (int i = 0; i < n; ++i) kin[i] = KinematicsOf(vehicles[i]);
     // 1. Autopilot ticks on its own schedule.
     if (t + kTimeEps >= static_cast<double>(autopilot_index) / config.autopilot_rate_hz) {
       do {
         ++autopilot_index;
       } while (static_cast<double>(autopilot_index) / config.autopilot_rate_hz <= t + kTimeEps);
-      EachVehicle([&](int i) {
+      for (int i = 0; i < n; ++i) {
         if (config.sensor_reality.enabled) {
           detail::UpdateSensorReality(config, kin[i], vehicles[i]);
         }
         detail::AutopilotTick(config, t, kin[i], vehicles[i]);
-      });
+      }
     }
     // 2. Sensors sample the state at t (each vehicle from its own streams), queued in vehicle
     // order, each in generation order.
@@ -274,7 +274,7 @@ struct World::Impl {
       for (const Measurement& meas : v.samples) Push(meas);
     }
     // 3. Motors, battery, propulsion wrench.
-    EachVehicle([&](int i) {
+    for (int i = 0; i < n; ++i) {
       Vehicle& v = vehicles[i];
       const model::VehicleParams& p = v.params;
       const Mat3& rot = kin[i].rotation;
@@ -295,7 +295,7 @@ struct World::Impl {
       if (aero->records_wakes()) aero->Record(i, t, kin[i].position, rot.col(2), thrust);
       v.force_w = rot.col(2) * thrust;
       v.torque_w = rot * torque_b;
-    });
+    }
     // 4. Wind, gusts and the aerodynamic pass (after every vehicle's thrust and wake record).
     if (config.wind.enabled && config.wind.gust_std > 0.0) {
       const double phi = std::exp(-dt / config.wind.gust_time_constant);

@@ -107,8 +107,9 @@ class World {
   /// Runs f(i) for every i in [0, n) and returns when all are done, in any order and on any
   /// thread (e.g. a worker pool's ForEach; the first exception of f rethrown).
   using ParallelFor = std::function<void(int n, const std::function<void(int)>& f)>;
-  /// Steps the per-vehicle work of each physics step (kinematics, autopilot, sensors, motors
-  /// and battery, the aerodynamic pass) through `parallel_for`; empty: one thread. Every
+  /// Steps the per-vehicle work of each physics step that costs (the sensors and the
+  /// aerodynamic pass; the rest is a few operations per vehicle) through `parallel_for`;
+  /// empty: one thread. Every
   /// vehicle's work touches only its own state and reads the others' start-of-step
   /// kinematics, and the measurements are queued in vehicle order afterwards: the results
   /// are bit-identical to one thread (tests/sim/parallel_step_test.cpp).
