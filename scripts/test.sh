@@ -83,4 +83,11 @@ if [[ $aarch64 == ON ]]; then
   bash scripts/build-aarch64.sh --no-install --test
   step_done "aarch64 tests"
 fi
-echo "test.sh: whole suite $(((SECONDS - suite_start) / 60)) min"
+total_min=$(((SECONDS - suite_start) / 60))
+# The budget (docs/benchmarks.md "Test suite"): 45 min on a clean clone of 2 cores, the CI
+# limit 90. Over the budget is said loudly, not failed: a loaded machine must not turn CI red.
+if ((total_min > 45)); then
+  echo "test.sh: whole suite ${total_min} min: OVER the 45-min budget (docs/benchmarks.md \"Test suite\")"
+else
+  echo "test.sh: whole suite ${total_min} min, within the 45-min budget"
+fi
