@@ -10,32 +10,14 @@
 #include <utility>
 #include <vector>
 
+#include "fnmpc/sysid/stage_report.hpp"
+
 namespace fnmpc::app::sysid_report {
 
 namespace fs = std::filesystem;
 
-/// One independent stage of the identification pipeline (propulsion, inertia, ...).
-struct Stage {
-  explicit Stage(std::string stage_name) : name(std::move(stage_name)) {}
-  std::string name;
-  bool ok = false;     ///< ran and produced its parameters
-  std::string reason;  ///< why it did not (the error message), empty when ok
-  nlohmann::json params = nlohmann::json::array();  ///< {name, value, std_error, unit}
-  nlohmann::json checks = nlohmann::json::array();  ///< {name, value, limit, pass}
-  nlohmann::json residuals = nlohmann::json::object();
-
-  /// Adds an identified parameter; std_error < 0 or NaN: not available.
-  void Param(const std::string& param, double value, double std_error, const std::string& unit);
-  /// Adds a sanity check "value <= limit" (upper = true) or "value >= limit".
-  void Check(const std::string& check, double value, double limit, bool upper = true);
-  /// Adds a sanity check with a precomputed outcome.
-  void CheckTrue(const std::string& check, bool pass, const std::string& detail);
-  /// Every sanity check passed (and the stage ran).
-  [[nodiscard]] bool Passed() const;
-  /// Names of the failed sanity checks, comma-separated (empty: none failed).
-  [[nodiscard]] std::string FailedChecks() const;
-  [[nodiscard]] nlohmann::json Json() const;
-};
+/// One stage of the pipeline (fnmpc/sysid/stage_report.hpp).
+using Stage = sysid::StageReport;
 
 /// Writes a CSV file with a header and rows of numbers (full precision).
 void WriteCsv(const fs::path& path, const std::vector<std::string>& header,
