@@ -190,7 +190,7 @@ struct RunCriteria {
 
 /// The simulated link of cooperative mode (block `link:`, `controller.compensation:
 /// cooperative`): what carries each vehicle's plan (formation::PlanMessage) to the vehicles
-/// that have it as a formation neighbour (apps/fnmpc/plan_link.hpp).
+/// that have it as a formation neighbour (fnmpc/experiment/plan_link.hpp).
 struct LinkSettings {
   double latency = 0.01;
   double loss_rate = 0.0;
