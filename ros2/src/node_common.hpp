@@ -1,16 +1,19 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// What both nodes share: stop on SIGINT/SIGTERM, logging with the node's name, the QoS of the
-// sensor streams (docs/ros2.md).
+// What the nodes share: their main (stop on SIGINT/SIGTERM, options, fatal errors), logging
+// with the node's name, the QoS of the sensor streams (docs/ros2.md).
 #pragma once
 
 #include <atomic>
 #include <csignal>
 #include <cstdio>
+#include <exception>
 #include <string>
+#include <vector>
 
 #include <fmt/format.h>
 
 #include "dds_node.hpp"
+#include "parameters.hpp"
 
 namespace fnmpc::ros2 {
 
@@ -36,6 +39,19 @@ inline QosProfile SensorQos(bool lockstep) {
 // missed half the setpoints of a run that way).
 inline QosProfile StreamQos(bool lockstep) {
   return lockstep ? QosProfile{true, 1000} : QosProfile::Default();
+}
+
+/// A node's main: stop handlers, the options parsed from argv (default node name `name`),
+/// `body(options)`'s exit code; an exception is printed as "[name] fatal: ..." and exits 1.
+template <typename Body>
+int RunNodeMain(int argc, char** argv, const char* name, Body body) {
+  InstallStopHandlers();
+  try {
+    return body(NodeOptions::Parse(std::vector<std::string>(argv + 1, argv + argc), name));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "[%s] fatal: %s\n", name, e.what());
+    return 1;
+  }
 }
 
 template <typename... Args>

@@ -305,11 +305,5 @@ int Record(const NodeOptions& o) {
 
 int main(int argc, char** argv) {
   using namespace fnmpc::ros2;
-  InstallStopHandlers();
-  try {
-    return Record(NodeOptions::Parse(std::vector<std::string>(argv + 1, argv + argc), "record"));
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "[record] fatal: %s\n", e.what());
-    return 1;
-  }
+  return RunNodeMain(argc, argv, "record", Record);
 }

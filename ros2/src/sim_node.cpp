@@ -330,17 +330,11 @@ class SimNode {
 
 int main(int argc, char** argv) {
   using namespace fnmpc::ros2;
-  InstallStopHandlers();
-  try {
-    const NodeOptions options =
-        NodeOptions::Parse(std::vector<std::string>(argv + 1, argv + argc), "sim");
+  return RunNodeMain(argc, argv, "sim", [](const NodeOptions& options) {
     SimNode node(options);
     const bool finished = node.Run();
     Log(options.fully_qualified_name(), "{} at t = {:.2f} s, {} vehicle(s) declared dead",
         finished ? "scenario finished" : "stopped", node.time(), node.dead());
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "[sim] fatal: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+    return 0;
+  });
 }

@@ -266,15 +266,9 @@ class VehicleNode {
 
 int main(int argc, char** argv) {
   using namespace fnmpc::ros2;
-  InstallStopHandlers();
-  try {
-    const NodeOptions options =
-        NodeOptions::Parse(std::vector<std::string>(argv + 1, argv + argc), "vehicle_node");
+  return RunNodeMain(argc, argv, "vehicle_node", [](const NodeOptions& options) {
     VehicleNode node(options);
     node.Spin();
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "[vehicle_node] fatal: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+    return 0;
+  });
 }

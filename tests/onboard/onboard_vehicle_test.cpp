@@ -14,18 +14,12 @@
 #include "fnmpc/autopilot/measurement_messages.hpp"
 #include "fnmpc/config/scenario_yaml.hpp"
 #include "fnmpc/onboard/controller_setup.hpp"
+#include "tests/autopilot/link_pair.hpp"
 
 namespace fnmpc::onboard {
 namespace {
 
-mavlink::Frame FrameOf(const mavlink::Message& m, int system, int component) {
-  mavlink::Frame f;
-  f.header.system_id = static_cast<std::uint8_t>(system);
-  f.header.component_id = static_cast<std::uint8_t>(component);
-  f.header.message_id = mavlink::InfoOf(m).id;
-  f.message = m;
-  return f;
-}
+using autopilot::testing::FrameOf;
 
 /// The triangle's leader (vehicle 0, MAVLink system 1) on the ground, its sensors on the link,
 /// and an emulated autopilot: one 50 Hz control step per Step().
