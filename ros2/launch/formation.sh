@@ -30,10 +30,14 @@ for v in yaml.safe_load(open(sys.argv[1]))["vehicles"]: print(v["name"])' "$scen
 pids=()
 stop() { for p in "${pids[@]}"; do kill -INT "$p" 2>/dev/null || true; done; }
 trap 'stop; kill -INT ${sim_pid:-0} 2>/dev/null || true' INT TERM
+# A recorder or an external program reads the setpoints too: the vehicle nodes answer the
+# first sync only once their setpoint writer has matched it as well as the simulator.
+readers=1
+[[ $record == 1 || -n $external ]] && readers=2
 for v in "${vehicles[@]}"; do
   [[ $v == "$external" ]] && { echo "formation: /$v flown by another program"; continue; }
   "$build/ros2/fnmpc_ros2_vehicle" --ros-args -r __ns:=/"$v" --params-file "$params" \
-    -p scenario:="$scenario" >"$out/$v.log" 2>&1 &
+    -p scenario:="$scenario" -p setpoint_subscribers:="$readers" >"$out/$v.log" 2>&1 &
   pids+=($!)
   echo "formation: vehicle node /$v (pid $!)"
 done

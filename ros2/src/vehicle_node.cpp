@@ -46,6 +46,7 @@ class VehicleNode {
         scenario_(config::LoadScenarioFile(o.RequiredString("scenario"))),
         name_(o.String("vehicle", o.node_namespace().substr(o.node_namespace().rfind('/') + 1))),
         lockstep_(o.Bool("lockstep", false)),
+        setpoint_subscribers_(o.Int("setpoint_subscribers", 1)),
         setpoint_pub_(participant_, o.Topic(topics::kSetpoint), StreamQos(lockstep_)),
         odom_pub_(participant_, o.Topic(topics::kOdom), StreamQos(lockstep_)),
         status_pub_(participant_, o.Topic(topics::kStatus), StreamQos(lockstep_)),
@@ -122,6 +123,10 @@ class VehicleNode {
   }
 
   void AnswerSyncs() {
+    if (!std::isfinite(last_answered_) &&
+        static_cast<int>(setpoint_pub_.Subscriptions()) < setpoint_subscribers_) {
+      return;  // the syncs wait in the queue; the simulator repeats the first until answered
+    }
     while (!syncs_.empty()) {
       const Sync& sync = syncs_.front();
       if (sync.t == last_answered_) {  // a repeated sync (start-up): repeat the answer
@@ -237,6 +242,11 @@ class VehicleNode {
   config::ScenarioConfig scenario_;
   std::string name_;
   bool lockstep_;
+  // Readers the setpoint writer must have matched before the first answer in lockstep (the
+  // simulator, plus a recorder or another program reading the setpoints): a reader that saw
+  // the writer may not yet be matched on the writer's side, and a volatile writer's samples
+  // before that match are lost to it.
+  int setpoint_subscribers_;
   Participant participant_;
   Writer<fnmpc_msgs_msg_dds__AttitudeThrustSetpoint_> setpoint_pub_;
   Writer<nav_msgs_msg_dds__Odometry_> odom_pub_;
